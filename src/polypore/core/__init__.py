@@ -1,0 +1,1 @@
+"""Bottom layer: errors, ragged arrays and other dependency-free helpers."""

@@ -1,0 +1,79 @@
+"""Node sides (scheme.md §3): the nodal displacement unknowns.
+
+For a node s, two cells around s are neighbours when they share a face that
+contains s and is not a fracture face; the connected components of that graph are
+the sides of s. One graph over all (cell, node) incidences gives every side of
+every node in a single connected-components call.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ..core.ragged import INDEX, frozen
+from .mesh import Mesh
+
+
+@dataclass(frozen=True, eq=False)
+class NodeSides:
+    """Sides of every node.
+
+    Attributes
+    ----------
+    cell_node_side : (nnz(mesh.cell_nodes),) int32
+        Side of each (K, s) incidence, aligned with ``mesh.cell_nodes.values``.
+    side_node : (n_sides,) int32
+        The node of each side.
+    """
+
+    cell_node_side: np.ndarray
+    side_node: np.ndarray
+
+    @property
+    def n_sides(self) -> int:
+        return self.side_node.size
+
+    def count_per_node(self, n_nodes: int) -> np.ndarray:
+        """(n_nodes,) number of sides of each node."""
+        return np.bincount(self.side_node, minlength=n_nodes)
+
+    def nbytes(self) -> int:
+        return self.cell_node_side.nbytes + self.side_node.nbytes
+
+
+def node_sides(mesh: Mesh, fracture_faces: np.ndarray) -> NodeSides:
+    """Compute the sides of all nodes once the given faces are cut.
+
+    Parameters
+    ----------
+    fracture_faces : (k,) int
+        Mesh faces that are fracture faces (the set F_Γ).
+    """
+    nn = mesh.n_nodes
+    cn = mesh.cell_nodes
+    keys = cn.rows_of_entries().astype(np.int64) * nn + cn.values
+    cut = np.zeros(mesh.n_faces, bool)
+    cut[np.asarray(fracture_faces, dtype=np.int64)] = True
+    glue = np.flatnonzero((mesh.face_cells[:, 1] >= 0) & ~cut)
+    sub = mesh.face_nodes.take(glue)
+    fc = mesh.face_cells[glue]
+    K = np.repeat(fc[:, 0], sub.counts).astype(np.int64)
+    L = np.repeat(fc[:, 1], sub.counts).astype(np.int64)
+    a = np.searchsorted(keys, K * nn + sub.values)
+    b = np.searchsorted(keys, L * nn + sub.values)
+    n = cn.nnz
+    graph = sp.coo_array((np.ones(a.size, dtype=np.int8), (a, b)), shape=(n, n)).tocsr()
+    n_comp, label = connected_components(graph, directed=False)
+    # number sides node by node (stable, reproducible): order components by (node, first incidence)
+    first = np.full(n_comp, n, dtype=np.int64)
+    np.minimum.at(first, label, np.arange(n))
+    order = np.lexsort((first, cn.values[first]))
+    rank = np.empty(n_comp, dtype=INDEX)
+    rank[order] = np.arange(n_comp, dtype=INDEX)
+    side = rank[label]
+    side_node = cn.values[first[order]]
+    return NodeSides(frozen(side.astype(INDEX)), frozen(side_node.astype(INDEX)))
