@@ -87,30 +87,18 @@ def validate_spec(spec: FractureSpec, dim: int, box: np.ndarray | None = None, t
     if np.any(np.linalg.norm(np.diff(closed, axis=0), axis=1) <= tol * scale):
         _fail(name, "degenerate polygon: two consecutive vertices coincide")
     c = V.mean(0)
-    A = 0.5 * np.cross(V - c, np.roll(V, -1, axis=0) - c).sum(0)
-    area = float(np.linalg.norm(A))
-    if area <= 1e-12 * scale ** 2:
-        _fail(name, "degenerate polygon: its area is zero (collinear vertices)")
-    n = A / area
+    # plane from the SVD (robust for any vertex order), orientation from the vector area
+    _, sv, vt = np.linalg.svd(V - c)
+    if sv[1] <= 1e-9 * scale:
+        _fail(name, "degenerate polygon: its vertices are collinear")
+    n = vt[2]
     off = np.abs((V - c) @ n)
     if off.max() > 1e-7 * scale:
         _fail(name, f"polygon is not planar: a vertex is {off.max():.3e} m off its plane")
-    if spec.normal is not None:
-        nu = np.asarray(spec.normal, float)
-        if nu.shape != (3,) or not np.linalg.norm(nu) > 0:
-            _fail(name, "normal must be a non-zero 3-vector")
-        nu = nu / np.linalg.norm(nu)
-        if abs(abs(nu @ n) - 1) > 1e-6:
-            _fail(name, f"normal {nu.tolist()} is not perpendicular to the polygon's plane (normal {n.tolist()})")
-        if nu @ n < 0:
-            n = -n
-    e1 = V[1] - V[0]
-    e1 = e1 - (e1 @ n) * n
-    e1 /= np.linalg.norm(e1)
+    e1 = vt[0]
     e2 = np.cross(n, e1)
     P = np.stack([(V - c) @ e1, (V - c) @ e2], axis=1)
     Pc = np.vstack([P, P[:1]])
-    # self-intersection check (non-adjacent edges must not cross)
     m = len(P)
     if m > 3:
         a0, a1 = Pc[:-1][:, None], Pc[1:][:, None]
@@ -122,9 +110,24 @@ def validate_spec(spec: FractureSpec, dim: int, box: np.ndarray | None = None, t
         d3, d4 = orient(b0, b1, a0), orient(b0, b1, a1)
         i, j = np.meshgrid(np.arange(m), np.arange(m), indexing="ij")
         adjacent = (np.abs(i - j) <= 1) | (np.abs(i - j) == m - 1)
-        hit = (d1 * d2 < 0) & (d3 * d4 < 0) & ~adjacent
-        if np.any(hit):
+        if np.any((d1 * d2 < 0) & (d3 * d4 < 0) & ~adjacent):
             _fail(name, "degenerate polygon: its edges cross each other (self-intersecting)")
+    area2 = float((Pc[:-1, 0] * Pc[1:, 1] - Pc[1:, 0] * Pc[:-1, 1]).sum())
+    area = 0.5 * abs(area2)
+    if area <= 1e-12 * scale ** 2:
+        _fail(name, "degenerate polygon: its area is zero")
+    if area2 < 0:  # make n the right-hand-rule normal of the vertex order
+        n, e2 = -n, -e2
+        P[:, 1] *= -1
+    if spec.normal is not None:
+        nu = np.asarray(spec.normal, float)
+        if nu.shape != (3,) or not np.linalg.norm(nu) > 0:
+            _fail(name, "normal must be a non-zero 3-vector")
+        nu = nu / np.linalg.norm(nu)
+        if abs(abs(nu @ n) - 1) > 1e-6:
+            _fail(name, f"normal {nu.tolist()} is not perpendicular to the polygon's plane (normal {n.tolist()})")
+        if nu @ n < 0:
+            n = -n
     return {"vertices": V, "normal": n, "centre": c, "e1": e1, "e2": e2, "poly2d": P, "measure": area}
 
 
@@ -299,6 +302,55 @@ def build_network(mesh: Mesh, specs, tol: float | None = None) -> FractureNetwor
         who = [names[k] for k in fracs[faces == dup]]
         raise InputError("fractures", f"fractures {who} overlap (they share face {dup}); fractures may cross "
                          "but not overlap")
+    return _assemble_network(mesh, names, specs, faces, fracs, normals, measures)
+
+
+def network_from_faces(mesh: Mesh, named_faces: dict, normals: dict | None = None) -> FractureNetwork:
+    """Fracture network from given mesh faces (imported meshes: physical groups).
+
+    Parameters
+    ----------
+    named_faces : mapping name -> (k,) int mesh face ids
+    normals : mapping name -> (d,) reference normal, optional
+        n^+ of each face is the face normal turned to agree with it. Without one, the
+        reference is the dominant face-normal direction (eigenvector of Σ |σ| n ⊗ n),
+        signed so that its largest component is positive.
+    """
+    normals = normals or {}
+    names = tuple(named_faces)
+    g = mesh.geometry
+    faces, fracs, nrms, measures = [], [], [], []
+    for i, name in enumerate(names):
+        f = np.unique(np.asarray(named_faces[name], dtype=INDEX))
+        if f.size == 0:
+            raise InputError(f"fractures.{name}", "has no faces in the mesh")
+        if np.any(mesh.face_cells[f, 1] < 0):
+            raise InputError(f"fractures.{name}", "contains boundary faces; fracture faces must be interior")
+        n = g.face_normal[f]
+        if name in normals and normals[name] is not None:
+            ref = np.asarray(normals[name], float)
+        else:
+            T = np.einsum("k,ki,kj->ij", g.face_area[f], n, n)
+            ref = np.linalg.eigh(T)[1][:, -1]
+            ref = ref * np.sign(ref[np.argmax(np.abs(ref))])
+        dots = n @ ref / np.linalg.norm(ref)
+        if np.any(np.abs(dots) < 0.1):
+            raise InputError(f"fractures.{name}", "is too curved to orient its + side from one reference normal; "
+                             "give its `normal`, or split it into fractures that are closer to planar")
+        faces.append(f)
+        fracs.append(np.full(f.size, i))
+        nrms.append(np.where(dots[:, None] > 0, n, -n))
+        measures.append(float(g.face_area[f].sum()))
+    faces = np.concatenate(faces).astype(INDEX) if faces else np.zeros(0, INDEX)
+    if np.unique(faces).size != faces.size:
+        raise InputError("fractures", "two fracture groups share faces; fractures may cross but not overlap")
+    fracs = np.concatenate(fracs).astype(INDEX) if fracs else np.zeros(0, INDEX)
+    nrms = np.concatenate(nrms) if nrms else np.zeros((0, mesh.dim))
+    specs = tuple(FractureSpec(n, np.zeros((0, mesh.dim))) for n in names)
+    return _assemble_network(mesh, names, specs, faces, fracs, nrms, measures)
+
+
+def _assemble_network(mesh, names, specs, faces, fracs, normals, measures) -> FractureNetwork:
     fnorm = mesh.geometry.face_normal[faces]
     agree = np.einsum("ki,ki->k", fnorm, normals) > 0
     fc = mesh.face_cells[faces]
@@ -370,7 +422,14 @@ class FracturedMesh:
 
     @classmethod
     def build(cls, mesh: Mesh, specs=(), tol: float | None = None) -> "FracturedMesh":
+        """Map fracture geometries onto the mesh and compute the node sides."""
         network = build_network(mesh, specs, tol)
+        return cls(mesh, network, node_sides(mesh, network.faces))
+
+    @classmethod
+    def from_faces(cls, mesh: Mesh, named_faces: dict, normals: dict | None = None) -> "FracturedMesh":
+        """Fractures given as mesh faces (imported meshes), then the node sides."""
+        network = network_from_faces(mesh, named_faces, normals)
         return cls(mesh, network, node_sides(mesh, network.faces))
 
     def side_counts(self) -> np.ndarray:

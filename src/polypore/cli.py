@@ -1,0 +1,131 @@
+"""The ``polypore`` command (interface.md): ``cases`` and ``mesh``.
+
+Exit status: 0 success, 1 a run failed, 2 bad input (the message names the field).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+import time
+from pathlib import Path
+
+from . import __version__
+from .core.errors import InputError, PolyporeError
+
+log = logging.getLogger("polypore")
+
+
+def _setup_logging(quiet: bool) -> None:
+    log.handlers.clear()
+    log.propagate = False
+    log.setLevel(logging.WARNING if quiet else logging.INFO)
+    if sys.stderr.isatty():
+        from rich.logging import RichHandler
+
+        handler = RichHandler(show_path=False, show_level=False, log_time_format="[%X]")
+    else:
+        handler = logging.StreamHandler(sys.stderr)
+        handler.setFormatter(logging.Formatter("[polypore] %(message)s"))
+    log.addHandler(handler)
+
+
+def _out_dir(args, case_name: str) -> Path:
+    out = Path(args.out) if args.out else Path("results") / case_name
+    if out.exists() and not out.is_dir():
+        raise InputError("--out", f"{str(out)!r} exists and is not a directory")
+    if out.is_dir() and any(out.iterdir()) and not args.force:
+        raise InputError("--out", f"directory {str(out)!r} is not empty; choose another --out or pass --force")
+    out.mkdir(parents=True, exist_ok=True)
+    return out
+
+
+def cmd_cases(args) -> int:
+    from .cases.registry import describe_cases
+
+    rows = describe_cases()
+    width = max(len(n) for n, _ in rows)
+    for name, line in rows:
+        print(f"{name:<{width}}  {line}")
+    return 0
+
+
+def cmd_mesh(args) -> int:
+    from .cases.casefile import load_case
+    from .cases.meshing import build_fractured_mesh
+    from .io.mesh_output import write_mesh_outputs
+
+    case = load_case(args.case, args.set or [])
+    t0 = time.perf_counter()
+    fm = build_fractured_mesh(case)
+    out = _out_dir(args, case.name)
+    report = write_mesh_outputs(out, case, fm, seconds=time.perf_counter() - t0)
+    _print_mesh_report(report)
+    print(f"wrote {out}/: mesh.vtu, fractures.vtu, mesh.json, case.toml")
+    return 0
+
+
+def _print_mesh_report(report: dict) -> None:
+    m = report["mesh"]
+    lines = [f"case {report['case']}: {m['dim']}D, {m['cells']} cells, {m['faces']} faces, {m['nodes']} nodes, "
+             f"{m['node_sides']} node sides (displacement unknowns {m['dim'] * m['node_sides']} nodal)",
+             f"  h max {m['h_max']:.4g} m, h mean {m['h_mean']:.4g} m, |Ω| = {m['volume']:.6g}, "
+             f"faces per cell {m['faces_per_cell'][0]}–{m['faces_per_cell'][1]}, non-planar faces {m['nonplanar_faces']}",
+             f"  boundary parts: " + ", ".join(f"{k} ({v})" for k, v in m["boundary"].items()),
+             f"  regions: " + ", ".join(f"{k} ({v})" for k, v in m["regions"].items())]
+    for name, f in report["fractures"].items():
+        extra = []
+        if f["tips"]:
+            extra.append(f"{f['tips']} tip{'s' if f['tips'] > 1 else ''}")
+        if f["kinks"]:
+            extra.append(f"{f['kinks']} kink{'s' if f['kinks'] > 1 else ''}")
+        if f["intersects"]:
+            extra.append("intersects " + ", ".join(f["intersects"]))
+        if f["reaches_boundary"]:
+            extra.append("reaches ∂Ω")
+        lines.append(f"  fracture {name}: {f['faces']} faces, measure {f['measure']:.6g}"
+                     + (f"; {'; '.join(extra)}" if extra else ""))
+    print("\n".join(lines))
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="polypore", description="Poromechanics of fractured rock with frictional "
+                                "contact on polytopal meshes.")
+    p.add_argument("--version", action="version", version=f"polypore {__version__}")
+    p.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors on stderr")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    c = sub.add_parser("cases", help="list the built-in cases")
+    c.set_defaults(func=cmd_cases)
+    m = sub.add_parser("mesh", help="build and write a case's mesh and print its statistics")
+    m.add_argument("case", metavar="CASE", help="built-in case name or path to a TOML case file")
+    m.add_argument("--out", metavar="DIR", help="output directory (default: results/<case>/)")
+    m.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field, e.g. mesh.size=0.1")
+    m.add_argument("--force", action="store_true", help="write into a non-empty output directory")
+    m.set_defaults(func=cmd_mesh)
+    return p
+
+
+def main(argv=None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not getattr(args, "func", None):
+        parser.print_help()
+        return 2
+    _setup_logging(args.quiet)
+    try:
+        return args.func(args)
+    except InputError as exc:
+        print(f"polypore: error: {exc}", file=sys.stderr)
+        return 2
+    except PolyporeError as exc:
+        print(f"polypore: run failed: {exc}", file=sys.stderr)
+        return exc.exit_status
+    except KeyboardInterrupt:
+        print("polypore: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

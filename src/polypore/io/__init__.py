@@ -1,0 +1,1 @@
+"""Output layer: VTU/PVD, JSON and CSV files, written atomically."""

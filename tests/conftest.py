@@ -1,0 +1,67 @@
+import numpy as np
+import pytest
+
+
+def geometry_defects(mesh):
+    """Largest relative defects of the per-cell geometric identities (scheme.md §3).
+
+    Returns a dict: 'closure' max |Σ_σ |σ| n_Kσ| / h^(d-1); 'moment' max |Σ_σ M_Kσ - |K| I| / |K|;
+    'centroid_moment' the same with |σ| x̄_σ ⊗ n_Kσ in place of M_Kσ (exact for planar faces);
+    'face_weights' / 'cell_weights' max |Σ ω_s x_s - x̄| / h; 'min_weight' the smallest weight.
+    """
+    from polypore.mesh import face_moments
+
+    g = mesh.geometry
+    d = mesh.dim
+    cf = mesh.cell_faces
+    rows = cf.rows_of_entries()
+    sgn = mesh.cell_face_sign.astype(float)
+    h = g.cell_diameter
+    S = np.zeros((mesh.n_cells, d))
+    np.add.at(S, rows, sgn[:, None] * g.face_vector_area[cf.values])
+    M = face_moments(mesh)
+    T = np.zeros((mesh.n_cells, d, d))
+    np.add.at(T, rows, sgn[:, None, None] * M[cf.values])
+    C = np.zeros((mesh.n_cells, d, d))
+    outer = g.face_centroid[:, :, None] * g.face_vector_area[:, None, :]
+    np.add.at(C, rows, sgn[:, None, None] * outer[cf.values])
+    I = np.eye(d)[None]
+    vol = g.cell_volume[:, None, None]
+    fn = mesh.face_nodes
+    fx = np.zeros((mesh.n_faces, d))
+    np.add.at(fx, fn.rows_of_entries(), g.face_node_weight[:, None] * mesh.nodes[fn.values])
+    cn = mesh.cell_nodes
+    cx = np.zeros((mesh.n_cells, d))
+    np.add.at(cx, cn.rows_of_entries(), g.cell_node_weight[:, None] * mesh.nodes[cn.values])
+    fsum = np.bincount(fn.rows_of_entries(), weights=g.face_node_weight)
+    csum = np.bincount(cn.rows_of_entries(), weights=g.cell_node_weight)
+    return {
+        "closure": float((np.linalg.norm(S, axis=1) / h ** (d - 1)).max()),
+        "moment": float((np.abs(T - vol * I).max(axis=(1, 2)) / g.cell_volume).max()),
+        "centroid_moment": float((np.abs(C - vol * I).max(axis=(1, 2)) / g.cell_volume).max()),
+        "face_weights": float((np.linalg.norm(fx - g.face_centroid, axis=1) / g.face_diameter).max()),
+        "cell_weights": float((np.linalg.norm(cx - g.cell_centroid, axis=1) / h).max()),
+        "weight_sums": float(max(np.abs(fsum - 1).max(), np.abs(csum - 1).max())),
+        "min_weight": float(min(g.face_node_weight.min(), g.cell_node_weight.min())),
+    }
+
+
+def assert_exact_geometry(mesh, volume=None, planar=True, tol=1e-11):
+    """Assert the geometric identities to round-off; ``planar`` adds the centroid form."""
+    d = geometry_defects(mesh)
+    assert d["closure"] < tol, d
+    assert d["moment"] < tol, d
+    if planar:
+        assert d["centroid_moment"] < tol, d
+    assert d["face_weights"] < tol, d
+    assert d["cell_weights"] < tol, d
+    assert d["weight_sums"] < tol, d
+    assert d["min_weight"] >= -tol, d
+    if volume is not None:
+        assert abs(mesh.volume - volume) < tol * volume
+    return d
+
+
+@pytest.fixture
+def exact_geometry():
+    return assert_exact_geometry
