@@ -67,7 +67,17 @@ class Geometry:
         return sum(getattr(self, n).nbytes for n in self.__dataclass_fields__)
 
 
-def _diameters(nodes: np.ndarray, rows: Ragged, chunk_entries: int = 2_000_000) -> np.ndarray:
+CHUNK = 32768  # rows per batch: bounds the temporaries of the batched kernels
+
+
+def _chunks(idx: np.ndarray, m: int):
+    """Split an index array into batches of about CHUNK * 4 / m rows."""
+    step = max(256, CHUNK * 4 // max(m, 1))
+    for a in range(0, len(idx), step):
+        yield a, idx[a:a + step]
+
+
+def _diameters(nodes: np.ndarray, rows: Ragged, chunk_entries: int = 200_000) -> np.ndarray:
     """(len(rows),) max pairwise distance between the nodes of each row."""
     out = np.zeros(len(rows))
     for m, ids, conn in rows.groups():
@@ -127,33 +137,35 @@ def _faces(dim, nodes, face_nodes: Ragged):
     centroid = np.empty((nf, dim))
     weight = np.empty(face_nodes.nnz)
     nonplanar = np.zeros(nf)
-    for m, rows, conn in face_nodes.groups():
-        X = nodes[conn]
-        if dim == 2:
-            if m != 2:
-                raise MeshError("mesh.faces", f"a 2D face must have 2 nodes, found {m}")
-            t = X[:, 1] - X[:, 0]
-            L = np.hypot(t[:, 0], t[:, 1])
-            area[rows] = L
+    for m, rows_all, conn_all in face_nodes.groups():
+        for start, rows in _chunks(rows_all, m):
+            conn = conn_all[start:start + len(rows)]
+            X = nodes[conn]
+            if dim == 2:
+                if m != 2:
+                    raise MeshError("mesh.faces", f"a 2D face must have 2 nodes, found {m}")
+                t = X[:, 1] - X[:, 0]
+                L = np.hypot(t[:, 0], t[:, 1])
+                area[rows] = L
+                with np.errstate(invalid="ignore", divide="ignore"):
+                    normal[rows] = np.stack([t[:, 1], -t[:, 0]], axis=1) / L[:, None]
+                centroid[rows] = X.mean(axis=1)
+                weight[face_nodes.positions(rows, m)] = 0.5
+                continue
+            if m < 3:
+                raise MeshError("mesh.faces", f"a 3D face must have at least 3 nodes, found {m}")
+            xc, Y, a = _face_pieces_3d(X)
+            A = a.sum(axis=1)
+            absA = np.linalg.norm(A, axis=1)
             with np.errstate(invalid="ignore", divide="ignore"):
-                normal[rows] = np.stack([t[:, 1], -t[:, 0]], axis=1) / L[:, None]
-            centroid[rows] = X.mean(axis=1)
-            weight[face_nodes.positions(rows, m)] = 0.5
-            continue
-        if m < 3:
-            raise MeshError("mesh.faces", f"a 3D face must have at least 3 nodes, found {m}")
-        xc, Y, a = _face_pieces_3d(X)
-        A = a.sum(axis=1)
-        absA = np.linalg.norm(A, axis=1)
-        with np.errstate(invalid="ignore", divide="ignore"):
-            n = A / absA[:, None]
-        w = np.einsum("kmi,ki->km", a, n)
-        area[rows] = absA
-        normal[rows] = n
-        with np.errstate(invalid="ignore", divide="ignore"):
-            centroid[rows] = xc + np.einsum("km,kmi->ki", w, Y + np.roll(Y, -1, axis=1)) / (3.0 * absA[:, None])
-            weight[face_nodes.positions(rows, m)] = (absA[:, None] / m + w + np.roll(w, 1, axis=1)) / (3.0 * absA[:, None])
-        nonplanar[rows] = np.abs(np.einsum("kmi,ki->km", Y, n)).max(axis=1)
+                n = A / absA[:, None]
+            w = np.einsum("kmi,ki->km", a, n)
+            area[rows] = absA
+            normal[rows] = n
+            with np.errstate(invalid="ignore", divide="ignore"):
+                centroid[rows] = xc + np.einsum("km,kmi->ki", w, Y + np.roll(Y, -1, axis=1)) / (3.0 * absA[:, None])
+                weight[face_nodes.positions(rows, m)] = (absA[:, None] / m + w + np.roll(w, 1, axis=1)) / (3.0 * absA[:, None])
+            nonplanar[rows] = np.abs(np.einsum("kmi,ki->km", Y, n)).max(axis=1)
     diameter = _diameters(nodes, face_nodes)
     tiny = area <= 1e-12 * np.maximum(diameter, 1e-300) ** (dim - 1)
     if np.any(tiny | ~np.isfinite(area)):
@@ -187,35 +199,35 @@ def compute_geometry(dim: int, nodes: np.ndarray, face_nodes: Ragged, cell_faces
     cweight = np.zeros(cell_nodes.nnz)
     share = 1.0 / (dim + 1)
     for m in np.unique(fcount):
-        sel = np.flatnonzero(fcount == m)
-        conn = face_nodes.values[face_nodes.positions(inc_face[sel], m)]
-        X = nodes[conn]
-        cells = inc_cell[sel]
-        p0 = x0[cells]
-        if dim == 2:
-            # triangle (x0, a, b) with (a, b) in the face's order; sign makes it counter-clockwise
-            e1 = X[:, 0] - p0
-            e2 = X[:, 1] - p0
-            v = inc_sign[sel] * 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
-            v = v[:, None]                      # (k, 1): one piece per face
-            pc = (p0 + X[:, 0] + X[:, 1]) * share
-            vol += np.bincount(cells, weights=v[:, 0], minlength=nc)
-            for k in range(dim):
-                cnum[:, k] += np.bincount(cells, weights=v[:, 0] * pc[:, k], minlength=nc)
-            node_w = np.repeat(v * share, 2, axis=1)      # (k, 2)
-        else:
-            xc, Y, a = _face_pieces_3d(X)
-            a *= inc_sign[sel][:, None, None]
-            v = np.einsum("kmi,ki->km", a, xc - p0) / 3.0        # sub-tetrahedra (x0, x_c, s_i, s_{i+1})
-            pc = (p0[:, None, :] + xc[:, None, :] + X + np.roll(X, -1, axis=1)) * share
-            vol += np.bincount(cells, weights=v.sum(1), minlength=nc)
-            for k in range(dim):
-                cnum[:, k] += np.bincount(cells, weights=(v * pc[:, :, k]).sum(1), minlength=nc)
-            vf = v.sum(axis=1, keepdims=True)
-            node_w = (v + np.roll(v, 1, axis=1)) * share + vf * share / m
-        keys = np.repeat(cells.astype(np.int64) * n_nodes, m) + conn.ravel()
-        pos = np.searchsorted(cn_keys, keys)
-        cweight += np.bincount(pos, weights=node_w.ravel(), minlength=cell_nodes.nnz)
+        for _, sel in _chunks(np.flatnonzero(fcount == m), m):
+            conn = face_nodes.values[face_nodes.positions(inc_face[sel], m)]
+            X = nodes[conn]
+            cells = inc_cell[sel]
+            p0 = x0[cells]
+            if dim == 2:
+                # triangle (x0, a, b) with (a, b) in the face's order; sign makes it counter-clockwise
+                e1 = X[:, 0] - p0
+                e2 = X[:, 1] - p0
+                v = inc_sign[sel] * 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
+                v = v[:, None]                      # (k, 1): one piece per face
+                pc = (p0 + X[:, 0] + X[:, 1]) * share
+                vol += np.bincount(cells, weights=v[:, 0], minlength=nc)
+                for k in range(dim):
+                    cnum[:, k] += np.bincount(cells, weights=v[:, 0] * pc[:, k], minlength=nc)
+                node_w = np.repeat(v * share, 2, axis=1)      # (k, 2)
+            else:
+                xc, Y, a = _face_pieces_3d(X)
+                a *= inc_sign[sel][:, None, None]
+                v = np.einsum("kmi,ki->km", a, xc - p0) / 3.0        # sub-tetrahedra (x0, x_c, s_i, s_{i+1})
+                pc = (p0[:, None, :] + xc[:, None, :] + X + np.roll(X, -1, axis=1)) * share
+                vol += np.bincount(cells, weights=v.sum(1), minlength=nc)
+                for k in range(dim):
+                    cnum[:, k] += np.bincount(cells, weights=(v * pc[:, :, k]).sum(1), minlength=nc)
+                vf = v.sum(axis=1, keepdims=True)
+                node_w = (v + np.roll(v, 1, axis=1)) * share + vf * share / m
+            keys = np.repeat(cells.astype(np.int64) * n_nodes, m) + conn.ravel()
+            pos = np.searchsorted(cn_keys, keys)
+            cweight += np.bincount(pos, weights=node_w.ravel(), minlength=cell_nodes.nnz)
     bad = ~(vol > 0)
     if np.any(bad):
         b = np.flatnonzero(bad)
