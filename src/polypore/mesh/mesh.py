@@ -131,12 +131,21 @@ class Mesh:
 
 def cell_node_sets(face_nodes: Ragged, cell_faces: Ragged, n_nodes: int) -> Ragged:
     """Ragged sorted distinct nodes of each cell, from cells -> faces -> nodes."""
-    sub = face_nodes.take(cell_faces.values)
-    owner = np.repeat(cell_faces.rows_of_entries(), sub.counts)
-    keys = np.unique(owner.astype(np.int64) * n_nodes + sub.values)
-    cells = (keys // n_nodes).astype(INDEX)
-    counts = np.bincount(cells, minlength=len(cell_faces))
-    return Ragged.from_counts(counts, (keys % n_nodes).astype(INDEX))
+    nc = len(cell_faces)
+    counts = np.zeros(nc, dtype=np.int64)
+    parts = []
+    inc_cell = cell_faces.rows_of_entries()
+    step = 16384  # cells per batch: bounds the int64 temporaries
+    for c0 in range(0, nc, step):
+        c1 = min(nc, c0 + step)
+        faces = cell_faces.values[cell_faces.offsets[c0]:cell_faces.offsets[c1]]
+        sub = face_nodes.take(faces)
+        owner = np.repeat(inc_cell[cell_faces.offsets[c0]:cell_faces.offsets[c1]], sub.counts)
+        keys = np.unique(owner.astype(np.int64) * n_nodes + sub.values)
+        cells = keys // n_nodes
+        counts[c0:c1] = np.bincount(cells - c0, minlength=c1 - c0)
+        parts.append((keys - cells * n_nodes).astype(INDEX))
+    return Ragged.from_counts(counts, np.concatenate(parts) if parts else np.zeros(0, INDEX))
 
 
 def _box_boundary(nodes: np.ndarray, face_nodes: Ragged, bfaces: np.ndarray) -> dict:
