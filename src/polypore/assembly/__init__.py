@@ -1,0 +1,1 @@
+"""Assembly layer: global sparse matrices from the discretisation's operators."""

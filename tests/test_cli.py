@@ -1,0 +1,140 @@
+"""The command line: listing cases, building meshes, exit statuses and messages for bad input."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from polypore.cli import main
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_help_and_cases(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["--help"])
+    assert exc.value.code == 0
+    assert "mesh" in capsys.readouterr().out
+    code, out, _ = run(capsys, "cases")
+    assert code == 0
+    assert "frictionless-3d" in out and "dfm-2d" in out and "C4" in out
+
+
+def test_console_script_entry_point():
+    proc = subprocess.run([sys.executable, "-m", "polypore", "cases"], capture_output=True, text=True)
+    assert proc.returncode == 0 and "dfm-3d" in proc.stdout
+
+
+def test_mesh_cartesian_case(tmp_path, capsys):
+    case = tmp_path / "t.toml"
+    case.write_text("""
+name = "t"
+description = "test"
+[mesh]
+generator = "cartesian"
+lower = [0.0, 0.0]
+upper = [2.0, 1.0]
+cells = [8, 4]
+[[fractures]]
+name = "F"
+vertices = [[0.5, 0.5], [1.5, 0.5]]
+[[regions]]
+name = "left"
+lower = [0.0, 0.0]
+upper = [1.0, 1.0]
+[[regions]]
+name = "right"
+lower = [1.0, 0.0]
+upper = [2.0, 1.0]
+""")
+    out = tmp_path / "out"
+    code, text, err = run(capsys, "mesh", str(case), "--out", str(out))
+    assert code == 0, err
+    assert "fracture F: 4 faces" in text
+    rep = json.loads((out / "mesh.json").read_text())
+    assert rep["mesh"]["cells"] == 32 and rep["mesh"]["regions"] == {"left": 16, "right": 16}
+    assert rep["fractures"]["F"]["tips"] == 2
+    assert (out / "mesh.vtu").stat().st_size > 0 and (out / "fractures.vtu").exists()
+    assert (out / "case.toml").exists()
+    # refuses a non-empty directory without --force
+    code, _, err = run(capsys, "mesh", str(case), "--out", str(out))
+    assert code == 2 and "not empty" in err
+    code, _, err = run(capsys, "mesh", str(case), "--out", str(out), "--force", "--set", "mesh.cells=[4, 2]")
+    assert code == 0, err
+
+
+BAD = [
+    # (overrides on the cartesian test case, expected fragment of the message)
+    (["fractures.F.vertices=[[0.3, 0.5], [1.5, 0.5]]"], "does not conform"),
+    (["fractures.F.vertices=[[0.5, 0.5], [0.5, 0.5]]"], "zero length"),
+    (["fractures.F.vertices=[[0.5, 0.5], [2.5, 0.5]]"], "outside the domain"),
+    (["mesh.generator=hexagonal"], "allowed: cartesian"),
+    (["mesh.cells=[0, 4]"], "positive integers"),
+    (["mesh.sise=3"], "mesh.sise: unknown key"),
+    (["regions.right.lower=[1.5, 0.0]"], "do not cover the domain"),
+]
+
+
+@pytest.mark.parametrize("overrides,msg", BAD)
+def test_bad_input_exit_2(tmp_path, capsys, overrides, msg):
+    case = tmp_path / "t.toml"
+    case.write_text("""
+name = "t"
+[mesh]
+generator = "cartesian"
+lower = [0.0, 0.0]
+upper = [2.0, 1.0]
+cells = [8, 4]
+[[fractures]]
+name = "F"
+vertices = [[0.5, 0.5], [1.5, 0.5]]
+[[regions]]
+name = "left"
+lower = [0.0, 0.0]
+upper = [1.0, 1.0]
+[[regions]]
+name = "right"
+lower = [1.0, 0.0]
+upper = [2.0, 1.0]
+""")
+    argv = ["mesh", str(case), "--out", str(tmp_path / "o")]
+    for o in overrides:
+        argv += ["--set", o]
+    code, _, err = run(capsys, *argv)
+    assert code == 2, err
+    assert msg in err
+    assert "Traceback" not in err
+    assert not (tmp_path / "o" / "mesh.json").exists()
+
+
+def test_degenerate_polygon_3d(tmp_path, capsys):
+    case = tmp_path / "p.toml"
+    case.write_text("""
+name = "p"
+[mesh]
+generator = "cartesian"
+lower = [0.0, 0.0, 0.0]
+upper = [1.0, 1.0, 1.0]
+cells = [2, 2, 2]
+[[fractures]]
+name = "P"
+vertices = [[0.0, 0.0, 0.5], [0.5, 0.5, 0.5], [1.0, 1.0, 0.5]]
+""")
+    code, _, err = run(capsys, "mesh", str(case), "--out", str(tmp_path / "o"))
+    assert code == 2 and "fractures.P" in err and "collinear" in err
+
+
+def test_missing_files(tmp_path, capsys):
+    code, _, err = run(capsys, "mesh", str(tmp_path / "nope.toml"))
+    assert code == 2 and "nope.toml" in err and "does not exist" in err
+    code, _, err = run(capsys, "mesh", "no-such-case")
+    assert code == 2 and "unknown case" in err
+    case = tmp_path / "f.toml"
+    case.write_text('name = "f"\n[mesh]\ngenerator = "file"\nfile = "absent.msh"\n')
+    code, _, err = run(capsys, "mesh", str(case), "--out", str(tmp_path / "o"))
+    assert code == 2 and "absent.msh" in err
