@@ -70,8 +70,8 @@ upper = [2.0, 1.0]
 
 BAD = [
     # (overrides on the cartesian test case, expected fragment of the message)
-    (["fractures.F.vertices=[[0.3, 0.5], [1.5, 0.5]]"], "does not conform"),
-    (["fractures.F.vertices=[[0.5, 0.5], [0.5, 0.5]]"], "zero length"),
+    (["fractures.F.vertices=[[0.5, 0.5], [1.5, 0.75]]"], "does not conform"),
+    (["fractures.F.vertices=[[0.5, 0.5], [0.5, 0.5]]"], "coincide"),
     (["fractures.F.vertices=[[0.5, 0.5], [2.5, 0.5]]"], "outside the domain"),
     (["mesh.generator=hexagonal"], "allowed: cartesian"),
     (["mesh.cells=[0, 4]"], "positive integers"),

@@ -1,4 +1,4 @@
-"""The ``polypore`` command (interface.md): ``cases`` and ``mesh``.
+"""The ``polypore`` command (interface.md): ``cases``, ``mesh``, ``run`` and ``convergence``.
 
 Exit status: 0 success, 1 a run failed, 2 bad input (the message names the field).
 """
@@ -67,6 +67,36 @@ def cmd_mesh(args) -> int:
     return 0
 
 
+def cmd_run(args) -> int:
+    from .cases.casefile import load_case
+    from .cases.run import run_static
+
+    case = load_case(args.case, args.set or [])
+    out = _out_dir(args, case.name)
+    summary = run_static(case, out)
+    st = summary["steps"][-1]
+    print(f"case {case.name}: {summary['mesh']['cells']} cells, {summary['mesh']['unknowns']} unknowns; "
+          f"{st['newton_iterations']} Newton iterations, residual {st['residual']:.2e}; "
+          f"faces open {st['open']}, stick {st['stick']}, slip {st['slip']}; "
+          f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB")
+    for name, v in summary.get("errors", {}).items():
+        print(f"  {name} = {v:.4e}")
+    print(f"wrote {out}/")
+    return 0
+
+
+def cmd_convergence(args) -> int:
+    from .cases.casefile import load_case
+    from .cases.convergence import format_table, run_convergence
+
+    case = load_case(args.case, args.set or [])
+    out = _out_dir(args, f"{case.name}-convergence")
+    result = run_convergence(case, args.levels, out)
+    print(format_table(result))
+    print(f"wrote {out}/: convergence.csv, convergence.json, convergence.png")
+    return 0
+
+
 def _print_mesh_report(report: dict) -> None:
     m = report["mesh"]
     lines = [f"case {report['case']}: {m['dim']}D, {m['cells']} cells, {m['faces']} faces, {m['nodes']} nodes, "
@@ -104,6 +134,19 @@ def build_parser() -> argparse.ArgumentParser:
     m.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field, e.g. mesh.size=0.1")
     m.add_argument("--force", action="store_true", help="write into a non-empty output directory")
     m.set_defaults(func=cmd_mesh)
+    r = sub.add_parser("run", help="run a case and write its results")
+    r.add_argument("case", metavar="CASE", help="built-in case name or path to a TOML case file")
+    r.add_argument("--out", metavar="DIR", help="output directory (default: results/<case>/)")
+    r.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field, e.g. mesh.size=0.1")
+    r.add_argument("--force", action="store_true", help="write into a non-empty output directory")
+    r.set_defaults(func=cmd_run)
+    c = sub.add_parser("convergence", help="mesh-refinement study of a case with an exact solution")
+    c.add_argument("case", metavar="CASE", help="built-in case name or path to a TOML case file")
+    c.add_argument("--levels", type=int, default=3, help="number of meshes (each halves the mesh size)")
+    c.add_argument("--out", metavar="DIR", help="output directory (default: results/<case>-convergence/)")
+    c.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field")
+    c.add_argument("--force", action="store_true", help="write into a non-empty output directory")
+    c.set_defaults(func=cmd_convergence)
     return p
 
 

@@ -199,6 +199,7 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
 
         if sec.has("cells"):
             cells = sec.vector("cells", dim)
+            sec.raw("size", None)  # `cells` takes precedence over a size inherited from the case
             if any(c < 1 or int(c) != c for c in cells):
                 raise InputError(sec.field("cells"), f"must be positive integers, got {cells}")
         else:

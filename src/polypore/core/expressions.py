@@ -56,8 +56,8 @@ class Expression:
     names: frozenset
     params: Mapping[str, float]
 
-    def __call__(self, x=0.0, y=0.0, z=0.0, t=0.0):
-        env = {"x": x, "y": y, "z": z, "t": t}
+    def __call__(self, x=0.0, y=0.0, z=0.0, t=0.0, **extra):
+        env = {"x": x, "y": y, "z": z, "t": t, **extra}
         shape = np.broadcast_shapes(*(np.shape(v) for v in env.values()))
         out = _eval(self.tree.body, env, self.params)
         return np.broadcast_to(np.asarray(out, dtype=float), shape).copy() if shape else float(out)
@@ -102,7 +102,7 @@ def _eval(node, env, params):
     raise AssertionError(f"unchecked node {type(node).__name__}")  # parse() rejects everything else
 
 
-def _check(node, field: str, text: str, params) -> set:
+def _check(node, field: str, text: str, params, extra=()) -> set:
     used = set()
     for sub in ast.walk(node):
         if isinstance(sub, (ast.Expression, ast.Load, ast.operator, ast.unaryop, ast.cmpop, ast.boolop)):
@@ -112,10 +112,11 @@ def _check(node, field: str, text: str, params) -> set:
                 raise InputError(field, f"expression {text!r}: only numbers are allowed as literals, got {sub.value!r}")
             continue
         if isinstance(sub, ast.Name):
-            if sub.id in VARIABLES:
+            if sub.id in VARIABLES or sub.id in extra:
                 used.add(sub.id)
             elif sub.id not in CONSTANTS and sub.id not in params and sub.id not in FUNCTIONS:
-                raise InputError(field, f"expression {text!r} uses unknown name {sub.id!r}; allowed: {_allowed()}")
+                raise InputError(field, f"expression {text!r} uses unknown name {sub.id!r}; allowed: {_allowed()}"
+                                 + (f", and here also {', '.join(extra)}" if extra else ""))
             continue
         if isinstance(sub, ast.Call):
             if not isinstance(sub.func, ast.Name) or sub.func.id not in FUNCTIONS or sub.keywords:
@@ -130,7 +131,7 @@ def _check(node, field: str, text: str, params) -> set:
     return used
 
 
-def parse(value, field: str, params: Mapping[str, float] | None = None) -> Expression:
+def parse(value, field: str, params: Mapping[str, float] | None = None, extra: tuple = ()) -> Expression:
     """Parse a case-file value (number or expression text) into an :class:`Expression`.
 
     Raises
@@ -147,11 +148,11 @@ def parse(value, field: str, params: Mapping[str, float] | None = None) -> Expre
         tree = ast.parse(text, mode="eval")
     except SyntaxError as exc:
         raise InputError(field, f"expression {text!r} does not parse ({exc.msg} at column {exc.offset})") from None
-    used = _check(tree, field, text, params)
+    used = _check(tree, field, text, params, tuple(extra))
     expr = Expression(text, field, tree, frozenset(used), params)
     try:
         with np.errstate(all="ignore"):
-            expr(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1))
+            expr(np.zeros(1), np.zeros(1), np.zeros(1), np.zeros(1), **{k: np.zeros(1) for k in extra})
     except (TypeError, ValueError) as exc:
         raise InputError(field, f"expression {text!r} cannot be evaluated: {exc}") from None
     return expr

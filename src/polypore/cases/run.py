@@ -1,0 +1,126 @@
+"""``polypore run`` for static contact-mechanics cases: mesh, solve, write, report.
+
+Files (interface.md): case.toml, summary.json, fractures.csv, bulk_0000.vtu,
+fractures_0000.vtu, solution.pvd and, in 2D, profiles along the fractures and a
+contact-state map (PNG). Everything is staged and moved into DIR on success only.
+"""
+
+from __future__ import annotations
+
+import logging
+import resource
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..io.plots import fracture_profiles, state_map
+from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
+from ..io.vtu import write_bulk_vtu, write_fracture_vtu, write_pvd
+from ..io.atomic import atomic_write_text
+from ..models.contact import STATE_NAMES
+from ..models.fracture_geometry import arc_length
+from ..models.mechanics import ContactMechanics
+from .casefile import CaseFile
+from .exact import PiecewiseSolution, SingleCrack, piecewise_errors
+from .mechanics_setup import mechanics_setup
+from .meshing import build_fractured_mesh
+
+log = logging.getLogger("polypore")
+
+
+def peak_memory_mb() -> float:
+    """Peak resident memory of this process (MB)."""
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def solve_static(case: CaseFile):
+    """Mesh the case, set up and solve the static problem; return (problem, state, setup, errors, timings)."""
+    t0 = time.perf_counter()
+    fm = build_fractured_mesh(case)
+    t1 = time.perf_counter()
+    setup = mechanics_setup(case, fm)
+    problem = ContactMechanics(fm, setup.data, setup.solver, setup.newton)
+    t2 = time.perf_counter()
+    st = problem.solve()
+    t3 = time.perf_counter()
+    errors = {}
+    if isinstance(setup.exact, PiecewiseSolution):
+        errors = piecewise_errors(problem, st, setup.exact)
+    elif isinstance(setup.exact, SingleCrack):
+        errors = setup.exact.errors(problem, st, arc_length(fm))
+    timings = {"mesh": t1 - t0, "setup": t2 - t1, "solve": t3 - t2, **{f"solve_{k}": v for k, v in st.seconds.items()}}
+    return problem, st, setup, errors, timings
+
+
+def unknowns(problem) -> int:
+    return int(problem.free.size + problem.n_ff * problem.dim)
+
+
+def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
+    """Run a static case and write its files into ``out``; return the summary."""
+    t0 = time.perf_counter()
+    problem, st, setup, errors, timings = solve_static(case)
+    fm, mesh = problem.fm, problem.fm.mesh
+    net = fm.network
+    g = mesh.geometry
+    d = mesh.dim
+    q = problem.jumps(st)
+    names = [STATE_NAMES[k] for k in st.state]
+    s = arc_length(fm)
+    with staged_run_directory(out) as stage:
+        atomic_write_text(stage / "case.toml", case.to_toml())
+        stress = problem.stress(st)
+        write_bulk_vtu(stage / "bulk_0000.vtu", mesh, cell_data={
+            "displacement": problem.cell_displacement(st), "stress": stress.reshape(len(stress), -1),
+            "von_mises": _von_mises(stress)}, point_data={"displacement": problem.node_displacement(st)})
+        qn = np.einsum("fi,fi->f", q, problem.normal)
+        ln = np.einsum("fi,fi->f", st.lam, problem.normal)
+        write_fracture_vtu(stage / "fractures_0000.vtu", fm, cell_data={
+            "jump": q, "jump_n": qn, "jump_t": np.linalg.norm(q - qn[:, None] * problem.normal, axis=1),
+            "lambda": st.lam, "lambda_n": ln,
+            "lambda_t": np.linalg.norm(st.lam - ln[:, None] * problem.normal, axis=1),
+            "state": st.state.astype(np.int32)})
+        write_pvd(stage / "solution.pvd", [(0.0, "bulk_0000.vtu", 0), (0.0, "fractures_0000.vtu", 1)])
+        cols = fracture_rows(0, 0.0, net.names, net.fracture, g.face_centroid[net.faces], s, problem.face_area, q,
+                             problem.normal, st.lam, names)
+        write_fractures_csv(stage / "fractures.csv", [cols])
+        if plots and d == 2 and net.n_faces:
+            _plots_2d(stage, case, problem, st, cols, setup)
+        summary = {
+            "case": case.name, "version": __version__,
+            "mesh": {"dim": d, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
+                     "fracture_faces": net.n_faces, "unknowns": unknowns(problem),
+                     "h_max": float(g.cell_diameter.max())},
+            "steps": [{"time": 0.0, "newton_iterations": st.newton_iterations, "residual": st.residual,
+                       "open": int(np.sum(st.state == 0)), "stick": int(np.sum(st.state == 1)),
+                       "slip": int(np.sum(st.state == 2)), "seconds": timings["solve"], "history": st.history}],
+            "totals": {"seconds": time.perf_counter() - t0, "peak_memory_mb": peak_memory_mb(),
+                       "seconds_by_stage": timings},
+        }
+        if errors:
+            summary["errors"] = errors
+        write_json(stage / "summary.json", summary)
+    return summary
+
+
+def _von_mises(S):
+    d = S.shape[1]
+    dev = S - np.trace(S, axis1=1, axis2=2)[:, None, None] / d * np.eye(d)
+    return np.sqrt(1.5 * np.einsum("kij,kij->k", dev, dev))
+
+
+def _plots_2d(stage, case, problem, st, cols, setup):
+    net = problem.fm.network
+    s = np.asarray(cols["s"], float)
+    fields = {"λ_n (Pa)": np.asarray(cols["lambda_n"], float), "|λ_τ| (Pa)": np.asarray(cols["lambda_t"], float),
+              "|[[u]]_τ| (m)": np.asarray(cols["jump_t"], float), "[[u]]_n (m)": np.asarray(cols["jump_n"], float)}
+    ref = None
+    if isinstance(setup.exact, SingleCrack):
+        ss = np.linspace(0, 2 * setup.exact.half_length, 400)
+        ref = {"λ_n (Pa)": (ss, setup.exact.lambda_n(ss)), "|[[u]]_τ| (m)": (ss, setup.exact.slip(ss))}
+    fracture_profiles(stage / "profiles.png", net.names, net.fracture, s, fields, cols["state"],
+                      title=f"{case.name}: multipliers and jumps along the fractures", reference=ref)
+    state_map(stage / "contact_states.png", problem.fm.mesh, net.faces, cols["state"],
+              title=f"{case.name}: contact states")

@@ -1,0 +1,112 @@
+"""Plots a run writes (PNG, matplotlib's Agg backend: works without a screen)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from .atomic import atomic_path
+
+STATE_COLOURS = {"open": "tab:blue", "stick": "tab:green", "slip": "tab:red"}
+
+
+def _plt():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save(fig, path) -> None:
+    with atomic_path(Path(path)) as tmp:
+        fig.savefig(tmp, dpi=130, bbox_inches="tight", format="png")
+    _plt().close(fig)
+
+
+def fracture_profiles(path, names, fracture, s, fields: dict, states, title: str = "", reference: dict | None = None):
+    """One column per fracture, one row per field against the arc length s (2D).
+
+    fields : name -> (n_ff,) values (label includes the unit); states : (n_ff,) state names;
+    reference : field name -> (s_ref, values) analytic curves drawn as lines.
+    """
+    plt = _plt()
+    nf = len(names)
+    rows = len(fields) + 1
+    fig, axes = plt.subplots(rows, nf, figsize=(3.2 * nf + 1, 2.0 * rows + 0.6), squeeze=False, sharex="col")
+    states = np.asarray(states)
+    for j, name in enumerate(names):
+        sel = np.flatnonzero(fracture == j)
+        order = sel[np.argsort(s[sel])]
+        for i, (label, vals) in enumerate(fields.items()):
+            ax = axes[i, j]
+            ax.plot(s[order], vals[order], ".-", ms=3, lw=0.8, label="polypore")
+            if reference and label in reference and j == 0:
+                sr, vr = reference[label]
+                ax.plot(sr, vr, "k--", lw=1, label="analytic")
+                ax.legend(fontsize=7)
+            if j == 0:
+                ax.set_ylabel(label, fontsize=8)
+            if i == 0:
+                ax.set_title(name, fontsize=9)
+            ax.tick_params(labelsize=7)
+            ax.grid(alpha=0.3)
+        ax = axes[-1, j]
+        for st, col in STATE_COLOURS.items():
+            m = order[states[order] == st]
+            ax.scatter(s[m], np.zeros(m.size), c=col, s=8, label=st)
+        ax.set_yticks([])
+        ax.set_xlabel("arc length s (m)", fontsize=8)
+        if j == 0:
+            ax.set_ylabel("state", fontsize=8)
+            ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.45))
+        ax.tick_params(labelsize=7)
+    if title:
+        fig.suptitle(title, fontsize=10)
+    save(fig, path)
+
+
+def state_map(path, mesh, fm_faces, states, title=""):
+    """2D map of the fracture faces coloured by contact state over the domain outline."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(7, 7 * np.ptp(mesh.nodes[:, 1]) / max(np.ptp(mesh.nodes[:, 0]), 1e-300) + 0.5))
+    lo, hi = mesh.bounding_box
+    ax.plot([lo[0], hi[0], hi[0], lo[0], lo[0]], [lo[1], lo[1], hi[1], hi[1], lo[1]], "k-", lw=0.8)
+    seg = mesh.face_nodes.values.reshape(-1, 2)[fm_faces]
+    states = np.asarray(states)
+    for st, col in STATE_COLOURS.items():
+        m = states == st
+        if m.any():
+            P = mesh.nodes[seg[m]]
+            for k, p in enumerate(P):
+                ax.plot(p[:, 0], p[:, 1], "-", color=col, lw=2.5, label=st if k == 0 else None)
+    ax.set_aspect("equal")
+    ax.legend(fontsize=8)
+    ax.set_xlabel("x (m)")
+    ax.set_ylabel("y (m)")
+    if title:
+        ax.set_title(title, fontsize=10)
+    save(fig, path)
+
+
+def convergence_plot(path, h, errors: dict, rates: dict, title=""):
+    """Log-log plot of each error against h with its fitted rate and a slope-1 guide."""
+    plt = _plt()
+    fig, ax = plt.subplots(figsize=(5.5, 4.2))
+    h = np.asarray(h, float)
+    for name, e in errors.items():
+        e = np.asarray(e, float)
+        if np.all(e > 0):
+            ax.loglog(h, e, "o-", label=f"{name} (rate {rates.get(name, float('nan')):.2f})")
+    ref = np.asarray(list(errors.values())[0], float) if errors else None
+    if ref is not None and np.all(ref > 0):
+        ax.loglog(h, ref[0] * (h / h[0]), "k:", lw=1, label="slope 1")
+    ax.set_xlabel("h (m)")
+    ax.set_ylabel("error")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    if title:
+        ax.set_title(title, fontsize=10)
+    save(fig, path)

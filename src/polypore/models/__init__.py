@@ -1,0 +1,1 @@
+"""Models: contact mechanics, mixed-dimensional flow, poromechanics and their time loop."""

@@ -1,0 +1,377 @@
+"""Static contact mechanics with P0 multipliers (scheme.md §3 "Discrete elasticity", §4).
+
+Unknowns: the free nodal + bubble displacement dofs (Dirichlet dofs eliminated) and one
+multiplier λ_σ ∈ R^d per fracture face. The system
+
+    A u + Σ_σ |σ| λ_σ·[[v]]_σ = ℓ(v)            (equilibrium, scheme.md §3)
+    (|σ|/β)(λ_σ − P(λ_σ + β [[u]]_σ)) = 0       (projections, scheme.md §4)
+
+is solved by the semi-smooth Newton loop of :mod:`polypore.solvers.newton`. The
+Jacobian's sparsity is built once; each iteration refills its values.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..assembly.elasticity import elasticity_matrix
+from ..assembly.pattern import Pattern
+from ..core.errors import InputError
+from ..discretisation import DisplacementSpace, Operators
+from ..discretisation.faces import face_entries, face_mean_operator
+from ..mesh import FracturedMesh
+from ..solvers.linear import LinearSolver
+from ..solvers.newton import Linearisation, NewtonOptions, semismooth_newton
+from .contact import LAWS, OPEN, SLIP, STICK, ContactLaw, linearise_contact
+
+log = logging.getLogger("polypore")
+
+VectorField = Callable[[np.ndarray, float], np.ndarray]   # (X (n, d) m, t s) -> (n, d)
+ScalarField = Callable[[np.ndarray, float], np.ndarray]   # (X (n, d) m, t s) -> (n,)
+TensorField = Callable[[np.ndarray, float], np.ndarray]   # (X (n, d) m, t s) -> (n, d, d)
+
+
+@dataclass(frozen=True)
+class DisplacementBC:
+    """Dirichlet condition u_i = value_i on the named boundary part for i in ``components`` (m)."""
+
+    boundary: str
+    components: tuple
+    value: VectorField
+
+
+@dataclass(frozen=True)
+class TractionBC:
+    """Neumann condition σ n = value on the named boundary part (Pa)."""
+
+    boundary: str
+    value: VectorField
+
+
+@dataclass(frozen=True)
+class ContactSpec:
+    """Contact data per fracture face: law, F (–), Tresca g (Pa), β scale c (–, scheme.md §4)."""
+
+    law: str = "coulomb"
+    friction: np.ndarray | float = 0.0
+    threshold: np.ndarray | float = 0.0
+    beta_scale: float = 1.0
+
+
+@dataclass(frozen=True)
+class MechanicsData:
+    """Everything the static contact-mechanics model needs besides the mesh.
+
+    Attributes
+    ----------
+    mu, lam : (n_cells,) Lamé parameters in Pa
+    displacement : Dirichlet conditions; traction : Neumann conditions
+    body_force : f(X, t) in N/m³ at cell centroids, or None
+    matrix_pressure : p_m(X, t) in Pa at cell centroids (Biot term −b p_m I), or None
+    biot : (n_cells,) Biot coefficient b (–)
+    fracture_pressure : p_f(X, t) in Pa at fracture face centroids, or None
+    initial_stress : σ⁰(X, t) in Pa at cell centroids (total stress = σ⁰ + σ(u)), or None
+    contact : ContactSpec
+    two_sided : bubbles on both sides of fracture faces (default: one-sided)
+    stabilisation : scale of the stabilisation S (1 in the scheme)
+    """
+
+    mu: np.ndarray
+    lam: np.ndarray
+    displacement: Sequence[DisplacementBC] = ()
+    traction: Sequence[TractionBC] = ()
+    body_force: VectorField | None = None
+    matrix_pressure: ScalarField | None = None
+    biot: np.ndarray | float = 1.0
+    fracture_pressure: ScalarField | None = None
+    initial_stress: TensorField | None = None
+    contact: ContactSpec = field(default_factory=ContactSpec)
+    two_sided: bool = False
+    stabilisation: float = 1.0
+
+
+@dataclass
+class MechanicsState:
+    """A solution: slot displacements u (n_slots, d) in m, multipliers λ (n_ff, d) in Pa, face states."""
+
+    u: np.ndarray
+    lam: np.ndarray
+    state: np.ndarray
+    time: float = 0.0
+    newton_iterations: int = 0
+    residual: float = 0.0
+    history: list = field(default_factory=list)
+    seconds: dict = field(default_factory=dict)
+
+
+def _side_points(space: DisplacementSpace) -> np.ndarray:
+    """Evaluation point of every side: its node, or for a node with several sides (on Γ) the
+    node nudged 1e-9 of the way towards one of the side's cells.
+
+    Piecewise-defined data (exact solutions discontinuous across Γ) are then evaluated on the
+    side's own piece; continuous data change by O(1e-9 h |∇f|) at fracture nodes only.
+    """
+    mesh = space.fm.mesh
+    sides = space.fm.sides
+    cell = mesh.cell_nodes.rows_of_entries()
+    first = np.full(sides.n_sides, -1, np.int64)
+    first[sides.cell_node_side[::-1]] = np.arange(cell.size)[::-1]
+    X = mesh.nodes[sides.side_node]
+    multi = np.bincount(sides.side_node, minlength=mesh.n_nodes)[sides.side_node] > 1
+    X[multi] += 1e-9 * (mesh.geometry.cell_centroid[cell[first[multi]]] - X[multi])
+    return X
+
+
+class ContactMechanics:
+    """The discrete static contact-mechanics problem on a fractured mesh.
+
+    Parameters
+    ----------
+    fm : FracturedMesh
+    data : MechanicsData
+    solver : LinearSolver (default: sparse direct)
+    """
+
+    def __init__(self, fm: FracturedMesh, data: MechanicsData, solver: LinearSolver | None = None,
+                 newton: NewtonOptions | None = None):
+        t0 = time.perf_counter()
+        self.fm, self.data = fm, data
+        mesh, net = fm.mesh, fm.network
+        self.dim = d = mesh.dim
+        self.space = DisplacementSpace.build(fm, data.two_sided)
+        self.ops = Operators.build(self.space)
+        mu, lam = np.broadcast_to(data.mu, (mesh.n_cells,)), np.broadcast_to(data.lam, (mesh.n_cells,))
+        self.mu, self.lam = mu, lam
+        self.A = elasticity_matrix(self.ops, mu, lam, data.stabilisation)
+        self.n_dofs = self.space.n_dofs
+        g = mesh.geometry
+        self.face_area = g.face_area[net.faces]
+        self.normal = net.normal
+        self.n_ff = net.n_faces
+        # jump as a vector operator (n_ff*d, n_dofs) and the equilibrium coupling B = |σ| [[·]]
+        J = self.ops.jump.tocoo()
+        self.jump_scalar = self.ops.jump
+        rows = (J.row[:, None].astype(np.int64) * d + np.arange(d)).ravel()
+        cols = (J.col[:, None].astype(np.int64) * d + np.arange(d)).ravel()
+        vals = np.repeat(J.data, d)
+        self.Jv = sp.csr_array((vals, (rows, cols)), shape=(self.n_ff * d, self.n_dofs))
+        self.Bv = sp.csr_array((vals * np.repeat(self.face_area[J.row], d), (rows, cols)), shape=self.Jv.shape)
+        self._setup_dirichlet()
+        self._setup_contact()
+        self._setup_pattern(J)
+        self.solver = solver or LinearSolver("auto")
+        self.newton = newton or NewtonOptions(label="contact Newton")
+        self.seconds_setup = time.perf_counter() - t0
+        log.info("mechanics: %d displacement dofs (%d free), %d multipliers, %s bubbles; set up in %.2f s",
+                 self.n_dofs, self.free.size, self.n_ff * d, "two-sided" if data.two_sided else "one-sided",
+                 self.seconds_setup)
+
+    # ---- set-up -------------------------------------------------------------------------
+    def _boundary_faces(self, name: str, field_: str) -> np.ndarray:
+        mesh = self.fm.mesh
+        if name not in mesh.boundary:
+            raise InputError(field_, f"unknown boundary {name!r}; this mesh has {', '.join(sorted(mesh.boundary))}")
+        return np.asarray(mesh.boundary[name], np.int64)
+
+    def _setup_dirichlet(self):
+        d = self.dim
+        comp_mask = np.zeros((self.space.n_sides, d), bool)
+        self._dir_groups = []
+        for k, bc in enumerate(self.data.displacement):
+            faces = self._boundary_faces(bc.boundary, f"mechanics.boundary.{bc.boundary}")
+            comps = tuple(int(c) for c in bc.components)
+            if not comps or any(c < 0 or c >= d for c in comps):
+                raise InputError(f"mechanics.boundary.{bc.boundary}", f"components must be in 0..{d - 1}, got {comps}")
+            _, _, slot, _ = face_entries(self.space, faces)
+            slot = np.unique(slot)
+            comp_mask[np.ix_(slot, comps)] = True
+            self._dir_groups.append((slot, comps, bc.value))
+        constrained = comp_mask.any(axis=0)
+        if not constrained.all() or comp_mask.sum() < d * (d + 1) // 2:
+            missing = [("xyz"[i]) for i in range(d) if not constrained[i]]
+            raise InputError("mechanics.boundary", "the displacement is not held: rigid motions are free "
+                             + (f"(no Dirichlet condition on the {', '.join(missing)} component)" if missing else
+                                "(too few Dirichlet nodes)")
+                             + "; give a displacement (u, ux, uy, uz) on some boundary part")
+        dofs = np.zeros(self.n_dofs, bool)
+        dofs[: self.space.n_sides * d] = comp_mask.ravel()
+        self.is_dirichlet = dofs
+        self.free = np.flatnonzero(~dofs)
+        self.fixed = np.flatnonzero(dofs)
+        self.free_index = np.full(self.n_dofs, -1, np.int64)
+        self.free_index[self.free] = np.arange(self.free.size)
+        self.side_points = _side_points(self.space)
+
+    def _setup_contact(self):
+        c = self.data.contact
+        if c.law not in LAWS:
+            raise InputError("contact.law", f"unknown contact law {c.law!r}; allowed: {', '.join(LAWS)}")
+        net = self.fm.network
+        g = self.fm.mesh.geometry
+        kp = net.plus_cell
+        if not c.beta_scale > 0:
+            raise InputError("contact.beta", f"must be positive, got {c.beta_scale!r}")
+        beta = c.beta_scale * (2 * self.mu[kp] + self.lam[kp]) / g.face_diameter[net.faces]
+        F = np.broadcast_to(np.asarray(c.friction, float), (self.n_ff,)).copy()
+        gthr = np.broadcast_to(np.asarray(c.threshold, float), (self.n_ff,)).copy()
+        self.law = ContactLaw(c.law, F, gthr, beta)
+
+    def _setup_pattern(self, J):
+        """All (row, col) contributions of the Newton Jacobian, restricted to free dofs, built once."""
+        d, nf, nfree = self.dim, self.n_ff, self.free.size
+        A = self.A[self.free][:, self.free].tocoo()
+        Bt = self.Bv[:, self.free].T.tocoo()
+        # C_u: row (σ, i), col (slot a, j) for every jump entry (σ, a)
+        rows = J.row.astype(np.int64)[:, None, None] * d + np.arange(d)[None, :, None]
+        colsd = J.col.astype(np.int64)[:, None, None] * d + np.arange(d)[None, None, :]
+        rows, colsd = np.broadcast_arrays(rows, colsd)
+        fcol = self.free_index[colsd]
+        keep = fcol >= 0
+        self._cu = (J.row, J.data, keep)
+        lr = (np.arange(nf)[:, None, None] * d + np.arange(d)[None, :, None]) + 0 * np.arange(d)[None, None, :]
+        lc = (np.arange(nf)[:, None, None] * d + np.arange(d)[None, None, :]) + 0 * np.arange(d)[None, :, None]
+        allr = np.concatenate([A.row, Bt.row, nfree + rows[keep], nfree + lr.ravel()])
+        allc = np.concatenate([A.col, nfree + Bt.col, fcol[keep], nfree + lc.ravel()])
+        n = nfree + nf * d
+        self.pattern = Pattern.build(allr, allc, (n, n))
+        self._fixed_vals = np.concatenate([A.data, Bt.data])
+
+    # ---- loads ----------------------------------------------------------------------------
+    def dirichlet_vector(self, t: float = 0.0) -> np.ndarray:
+        """(n_dofs,) prescribed values on Dirichlet dofs, 0 elsewhere (m)."""
+        d = self.dim
+        u = np.zeros((self.space.n_slots, d))
+        for slot, comps, fn in self._dir_groups:
+            val = np.asarray(fn(self.side_points[slot], t), float).reshape(len(slot), d)
+            u[np.ix_(slot, comps)] = val[:, comps]
+        return u.ravel()
+
+    def load_vector(self, t: float = 0.0) -> np.ndarray:
+        """(n_dofs,) right-hand side ℓ(v): body force, tractions, Biot, fracture pressure, σ⁰ (N)."""
+        mesh, d = self.fm.mesh, self.dim
+        g = mesh.geometry
+        data = self.data
+        F = np.zeros((self.space.n_slots, d))
+        xK = g.cell_centroid
+        vol = g.cell_volume
+        if data.body_force is not None:
+            f = np.asarray(data.body_force(xK, t), float).reshape(-1, d)
+            F += self.ops.mean.T @ (vol[:, None] * f)
+        for bc in data.traction:
+            faces = self._boundary_faces(bc.boundary, f"mechanics.boundary.{bc.boundary}")
+            gv = np.asarray(bc.value(g.face_centroid[faces], t), float).reshape(-1, d)
+            M = face_mean_operator(self.space, faces)
+            F += M.T @ (g.face_area[faces][:, None] * gv)
+        if data.matrix_pressure is not None:
+            p = np.asarray(data.matrix_pressure(xK, t), float) * np.broadcast_to(data.biot, (mesh.n_cells,))
+            for j in range(d):
+                F[:, j] += self.ops.D[j].T @ (vol * p)
+        if data.initial_stress is not None:
+            S0 = np.asarray(data.initial_stress(xK, t), float).reshape(-1, d, d)
+            for i in range(d):
+                for j in range(d):
+                    F[:, i] -= self.ops.D[j].T @ (vol * S0[:, i, j])
+        if data.fracture_pressure is not None and self.n_ff:
+            pf = np.asarray(data.fracture_pressure(g.face_centroid[self.fm.network.faces], t), float)
+            F -= self.jump_scalar.T @ ((self.face_area * pf)[:, None] * self.normal)
+        return F.ravel()
+
+    # ---- Newton ----------------------------------------------------------------------------
+    def _split(self, x, udir):
+        nfree = self.free.size
+        u = udir.copy()
+        u[self.free] = x[:nfree]
+        lam = x[nfree:].reshape(self.n_ff, self.dim)
+        return u, lam
+
+    def linearise(self, x, F, udir, q_old=None) -> Linearisation:
+        d, nf = self.dim, self.n_ff
+        u, lam = self._split(x, udir)
+        q = (self.Jv @ u).reshape(nf, d)
+        s = q if q_old is None else q - q_old
+        C, dC_dlam, dC_dq, state = linearise_contact(self.law, lam, q, s, self.normal, self.face_area)
+        Ru = self.A @ u + self.Bv.T @ lam.ravel() - F
+        Ru_f = Ru[self.free]
+        jrow, jval, keep = self._cu
+        cu = (dC_dq[jrow] * jval[:, None, None])[keep]
+        vals = np.concatenate([self._fixed_vals, cu, dC_dlam.ravel()])
+        Jac = self.pattern.fill(vals)
+        # scales: the work-conjugate size of each block (energy-norm scaling)
+        su = max(np.linalg.norm(F[self.free]), np.linalg.norm((self.A @ u)[self.free]),
+                 np.linalg.norm(self.Bv.T @ lam.ravel()), 1e-300)
+        sc = max(np.linalg.norm(self.face_area[:, None] * q), np.linalg.norm((self.face_area / self.law.beta)[:, None]
+                                                                            * lam), 1e-300)
+        norms = {"equilibrium": float(np.linalg.norm(Ru_f) / su)}
+        if nf:
+            norms["contact"] = float(np.linalg.norm(C) / sc)
+        counts = {"open": int(np.sum(state == OPEN)), "stick": int(np.sum(state == STICK)),
+                  "slip": int(np.sum(state == SLIP))} if nf else {}
+        return Linearisation(np.concatenate([Ru_f, C.ravel()]), Jac, norms, counts, state)
+
+    def solve(self, t: float = 0.0, initial: MechanicsState | None = None, q_old: np.ndarray | None = None,
+              verbose: bool = True) -> MechanicsState:
+        """Solve the static problem at time t (loads evaluated at t).
+
+        Starts from ``initial`` or, by default, from u = Dirichlet values and every fracture face
+        closed and stuck (λ = tiny compression), whose linearisation is the bonded problem.
+        """
+        t0 = time.perf_counter()
+        F = self.load_vector(t)
+        udir = self.dirichlet_vector(t)
+        nfree = self.free.size
+        x0 = np.zeros(nfree + self.n_ff * self.dim)
+        if initial is not None:
+            x0[:nfree] = initial.u.ravel()[self.free]
+            x0[nfree:] = initial.lam.ravel()
+        else:
+            scale = max(np.abs(F).max(initial=0.0), 1e-300)
+            x0[nfree:] = (1e-12 * scale * self.normal).ravel()
+        t1 = time.perf_counter()
+
+        def incr(dx, x):
+            du = np.linalg.norm(dx[:nfree]) / max(np.linalg.norm(x[:nfree] + dx[:nfree]), 1e-300)
+            dl = np.linalg.norm(dx[nfree:]) / max(np.linalg.norm(x[nfree:] + dx[nfree:]), 1e-300) if self.n_ff else 0
+            return float(max(du, dl))
+
+        res = semismooth_newton(lambda x: self.linearise(x, F, udir, q_old), x0, self.solver, incr, self.newton,
+                                verbose)
+        u, lam = self._split(res.x, udir)
+        lin_state = self.linearise(res.x, F, udir, q_old).active_set
+        return MechanicsState(u.reshape(-1, self.dim), lam, lin_state, t, res.iterations, res.residual, res.history,
+                              {"loads": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear,
+                               "total": time.perf_counter() - t0})
+
+    # ---- post-processing ---------------------------------------------------------------------
+    def jumps(self, st: MechanicsState) -> np.ndarray:
+        """(n_ff, d) mean jump [[u]]_σ in m."""
+        return self.jump_scalar @ st.u
+
+    def gradients(self, st: MechanicsState) -> np.ndarray:
+        """(n_cells, d, d) ∇^K u."""
+        return self.ops.gradient(st.u)
+
+    def stress(self, st: MechanicsState) -> np.ndarray:
+        """(n_cells, d, d) σ^K = 2μ ε^K + λ_L div^K I in Pa (without σ⁰ and the Biot term)."""
+        G = self.gradients(st)
+        eps = 0.5 * (G + G.transpose(0, 2, 1))
+        tr = np.trace(eps, axis1=1, axis2=2)
+        return 2 * self.mu[:, None, None] * eps + (self.lam * tr)[:, None, None] * np.eye(self.dim)
+
+    def cell_displacement(self, st: MechanicsState) -> np.ndarray:
+        """(n_cells, d) Π^K u at the cell centroid (= ū_K), m."""
+        return self.ops.mean @ st.u
+
+    def node_displacement(self, st: MechanicsState) -> np.ndarray:
+        """(n_nodes, d) nodal displacement (average over the node's sides), m."""
+        sides = self.fm.sides
+        n = self.fm.mesh.n_nodes
+        cnt = np.bincount(sides.side_node, minlength=n)
+        out = np.stack([np.bincount(sides.side_node, weights=st.u[: sides.n_sides, k], minlength=n)
+                        for k in range(self.dim)], 1)
+        return out / np.maximum(cnt, 1)[:, None]

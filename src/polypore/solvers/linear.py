@@ -1,0 +1,150 @@
+"""One small interface for sparse linear solves, with pluggable backends.
+
+Backends
+--------
+``superlu``  scipy's SuperLU (always available; fine in 2D and for small 3D systems).
+``pardiso``  Intel MKL PARDISO through pypardiso (extra ``fast``); the 3D direct default.
+``amg``      pyamg smoothed aggregation (optionally with a near-nullspace such as rigid-body
+             modes) preconditioning CG (symmetric) or GMRES (extra ``amg``).
+``auto``     pardiso if installed, else superlu.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from ..core.errors import InputError, RunError
+
+log = logging.getLogger("polypore")
+
+BACKENDS = ("auto", "superlu", "pardiso", "amg")
+
+
+def have_pardiso() -> bool:
+    try:
+        import pypardiso  # noqa: F401
+    except Exception:
+        return False
+    return True
+
+
+@dataclass
+class SolveStats:
+    """Counters of one solver object: calls, seconds, Krylov iterations of the last solve."""
+
+    calls: int = 0
+    seconds: float = 0.0
+    iterations: list = field(default_factory=list)
+
+
+@dataclass
+class LinearSolver:
+    """Solve A x = b for sparse A (csr/csc), b of shape (n,) or (n, k).
+
+    Parameters
+    ----------
+    backend : one of BACKENDS
+    symmetric : bool
+        The matrix is symmetric (CG instead of GMRES for ``amg``).
+    rtol : float
+        Relative residual tolerance of iterative backends.
+    near_nullspace : (n, k) array or None
+        Near-nullspace vectors for AMG (rigid-body modes for elasticity).
+    """
+
+    backend: str = "auto"
+    symmetric: bool = False
+    rtol: float = 1e-10
+    maxiter: int = 500
+    near_nullspace: np.ndarray | None = None
+    stats: SolveStats = field(default_factory=SolveStats)
+
+    def __post_init__(self):
+        if self.backend not in BACKENDS:
+            raise InputError("solver.linear", f"unknown linear solver {self.backend!r}; allowed: {', '.join(BACKENDS)}")
+        if self.backend == "auto":
+            self.backend = "pardiso" if have_pardiso() else "superlu"
+        if self.backend == "pardiso" and not have_pardiso():
+            raise InputError("solver.linear", "'pardiso' needs the optional extra: pip install 'polypore[fast]'")
+        if self.backend == "amg":
+            try:
+                import pyamg  # noqa: F401
+            except ImportError:
+                raise InputError("solver.linear", "'amg' needs the optional extra: pip install 'polypore[amg]'") from None
+
+    def solve(self, A, b) -> np.ndarray:
+        t0 = time.perf_counter()
+        A = sp.csr_matrix(A)
+        b = np.asarray(b, float)
+        if self.backend == "superlu":
+            x = self._superlu(A, b)
+        elif self.backend == "pardiso":
+            import pypardiso
+
+            x = pypardiso.spsolve(A, b)
+        else:
+            x = self._amg(A, b)
+        if not np.all(np.isfinite(x)):
+            raise RunError("the linear system is singular (the solution has NaN/Inf): check that every part of the "
+                           "body is held (Dirichlet conditions) and that the contact data are consistent")
+        self.stats.calls += 1
+        self.stats.seconds += time.perf_counter() - t0
+        return x
+
+    def _superlu(self, A, b):
+        try:
+            lu = spla.splu(A.tocsc(), permc_spec="COLAMD")
+        except RuntimeError as exc:
+            raise RunError(f"the linear system is singular ({exc}): check the Dirichlet conditions and the data") from None
+        return lu.solve(b)
+
+    def _amg(self, A, b):
+        import pyamg
+
+        B = self.near_nullspace
+        ml = pyamg.smoothed_aggregation_solver(A, B=B, strength="evolution" if B is not None else "symmetric",
+                                               max_coarse=500)
+        M = ml.aspreconditioner(cycle="V")
+        its = [0]
+
+        def cb(_):
+            its[0] += 1
+
+        cols = b.reshape(len(b), -1)
+        out = np.empty_like(cols)
+        for j in range(cols.shape[1]):
+            its[0] = 0
+            krylov = spla.cg if self.symmetric else spla.gmres
+            kw = {"restart": 100} if not self.symmetric else {}
+            x, info = krylov(A, cols[:, j], rtol=self.rtol, maxiter=self.maxiter, M=M, callback=cb, **kw)
+            if info != 0:
+                raise RunError(f"the iterative solver did not reach rtol={self.rtol:g} in {self.maxiter} iterations")
+            out[:, j] = x
+            self.stats.iterations.append(its[0])
+        return out.reshape(b.shape)
+
+
+def rigid_body_modes(points: np.ndarray) -> np.ndarray:
+    """(d*n, 3 or 6) rigid motions of points (n, d), components interleaved (x0, y0, [z0], x1, ...)."""
+    n, d = points.shape
+    c = points - points.mean(0)
+    if d == 2:
+        B = np.zeros((n, 2, 3))
+        B[:, 0, 0] = 1
+        B[:, 1, 1] = 1
+        B[:, 0, 2] = -c[:, 1]
+        B[:, 1, 2] = c[:, 0]
+    else:
+        B = np.zeros((n, 3, 6))
+        B[:, 0, 0] = B[:, 1, 1] = B[:, 2, 2] = 1
+        x, y, z = c.T
+        B[:, 0, 3], B[:, 1, 3] = -y, x
+        B[:, 1, 4], B[:, 2, 4] = -z, y
+        B[:, 0, 5], B[:, 2, 5] = z, -x
+    return B.reshape(n * d, -1)

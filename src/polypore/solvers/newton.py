@@ -1,0 +1,108 @@
+"""Semi-smooth Newton iteration (scheme.md §4), independent of the physics.
+
+The caller supplies ``linearise(x) -> Linearisation`` (residual blocks, Jacobian, labels
+such as open/stick/slip counts) and block norms; this module runs the loop, logs every
+iteration and decides convergence or failure.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..core.errors import RunError
+from .linear import LinearSolver
+
+log = logging.getLogger("polypore")
+
+
+@dataclass
+class Linearisation:
+    """What the model returns at an iterate.
+
+    Attributes
+    ----------
+    residual : (n,) residual vector F(x)
+    jacobian : (n, n) sparse generalised Jacobian
+    block_norms : dict name -> scaled residual norm (dimensionless, 1 = the scale of the data)
+    counts : dict label -> int (e.g. open / stick / slip faces), logged and used for the
+        "active set unchanged" test
+    """
+
+    residual: np.ndarray
+    jacobian: object
+    block_norms: dict
+    counts: dict = field(default_factory=dict)
+    active_set: np.ndarray | None = None
+
+
+@dataclass
+class NewtonOptions:
+    """Stopping rule: all scaled block residuals ≤ ``tol`` and the scaled increment ≤ ``increment_tol``."""
+
+    tol: float = 1e-8
+    increment_tol: float = 1e-8
+    max_iterations: int = 50
+    label: str = "Newton"
+
+
+@dataclass
+class NewtonResult:
+    x: np.ndarray
+    iterations: int
+    residual: float
+    counts: dict
+    history: list
+    seconds_linear: float
+    seconds_assembly: float
+
+
+def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.ndarray, solver: LinearSolver,
+                      increment_norm: Callable[[np.ndarray, np.ndarray], float],
+                      options: NewtonOptions = NewtonOptions(), verbose: bool = True) -> NewtonResult:
+    """Run the semi-smooth Newton loop from x0.
+
+    Converged when every block norm is ≤ tol and either the last increment is ≤ increment_tol
+    or the active set did not change (then the last linear solve was exact for the final set).
+    Raises RunError after ``max_iterations`` with the last residuals and state counts.
+    """
+    x = np.array(x0, float)
+    history = []
+    t_lin = t_asm = 0.0
+    prev_active = None
+    inc = np.inf
+    for it in range(options.max_iterations + 1):
+        t0 = time.perf_counter()
+        lin = linearise(x)
+        t_asm += time.perf_counter() - t0
+        rnorm = max(lin.block_norms.values()) if lin.block_norms else 0.0
+        same = prev_active is not None and lin.active_set is not None and np.array_equal(prev_active, lin.active_set)
+        row = {"iteration": it, "residual": rnorm, "increment": inc, **lin.block_norms, **lin.counts}
+        history.append(row)
+        if verbose:
+            states = " ".join(f"{k} {v}" for k, v in lin.counts.items())
+            blocks = " ".join(f"{k} {v:.2e}" for k, v in lin.block_norms.items())
+            log.info("%s it %2d: residual %.3e (%s) increment %.2e  %s", options.label, it, rnorm, blocks,
+                     inc if np.isfinite(inc) else float("nan"), states)
+        if not np.all(np.isfinite(lin.residual)):
+            raise RunError(f"{options.label}: the residual became NaN/Inf at iteration {it}")
+        if rnorm <= options.tol and (inc <= options.increment_tol or same or it == 0 and rnorm == 0.0):
+            return NewtonResult(x, it, rnorm, lin.counts, history, t_lin, t_asm)
+        if it == options.max_iterations:
+            break
+        prev_active = None if lin.active_set is None else lin.active_set.copy()
+        t0 = time.perf_counter()
+        dx = solver.solve(lin.jacobian, -lin.residual)
+        t_lin += time.perf_counter() - t0
+        inc = increment_norm(dx, x)
+        x = x + dx
+    states = ", ".join(f"{v} {k}" for k, v in lin.counts.items())
+    raise RunError(f"{options.label} did not converge in {options.max_iterations} iterations: scaled residual "
+                   f"{rnorm:.3e} > tol {options.tol:g} (" + ", ".join(f"{k} {v:.2e}" for k, v in
+                                                                     lin.block_norms.items())
+                   + f"); last contact states: {states or 'n/a'}. Try more iterations (solver.max_iterations), "
+                   "a different contact.beta, or smaller load steps.")
