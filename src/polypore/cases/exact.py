@@ -135,7 +135,7 @@ def _plus_points(problem):
     g = problem.fm.mesh.geometry
     net = problem.fm.network
     xc = g.face_centroid[net.faces]
-    return xc + 1e-9 * (g.cell_centroid[net.plus_cell] - xc)
+    return xc + 1e-12 * (g.cell_centroid[net.plus_cell] - xc)
 
 
 def piecewise_errors(problem, st, sol: PiecewiseSolution) -> dict:

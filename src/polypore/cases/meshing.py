@@ -9,6 +9,7 @@ Schema (all lengths in m)::
     size = 0.25                # target cell size (cartesian may give `cells` instead)
     cells = [8, 8, 8]          # cartesian only: cells per direction
     fracture_size = 0.1        # simplicial/agglomerated: size on fractures (default: size)
+    grading = 0.4              # simplicial/agglomerated: size growth per unit distance from the fractures
     rounds = 2                 # agglomerated: rounds of pairwise merging
     perturb = 0.0              # random node perturbation, fraction of the local edge length
     seed = 0
@@ -216,7 +217,9 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
 
         size = sec.number("size", positive=True)
         fsize = sec.number("fracture_size", size, positive=True)
-        mesh = simplicial_mesh(lower, upper, specs, size, fracture_size=fsize, interfaces=interfaces, seed=seed)
+        grading = sec.number("grading", 0.4, positive=True)
+        mesh = simplicial_mesh(lower, upper, specs, size, fracture_size=fsize, interfaces=interfaces, seed=seed,
+                               grading=grading)
     elif gen == "voronoi":
         from ..mesh.generators.voronoi import voronoi_mesh
 
@@ -230,7 +233,9 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
         size = sec.number("size", positive=True)
         fsize = sec.number("fracture_size", size, positive=True)
         rounds = sec.number("rounds", 2, integer=True, nonneg=True)
-        base = simplicial_mesh(lower, upper, specs, size / 2, fracture_size=fsize / 2, interfaces=interfaces, seed=seed)
+        grading = sec.number("grading", 0.4, positive=True)
+        base = simplicial_mesh(lower, upper, specs, size / 2, fracture_size=fsize / 2, interfaces=interfaces, seed=seed,
+                               grading=grading)
         keep = build_network(base, list(specs) + interfaces).faces
         mesh = agglomerate(base, keep, rounds=rounds, seed=seed)
     log.info("generated a %s mesh of %d cells in %.2f s", gen, mesh.n_cells, time.perf_counter() - t0)

@@ -112,10 +112,10 @@ class MechanicsState:
 
 def _side_points(space: DisplacementSpace) -> np.ndarray:
     """Evaluation point of every side: its node, or for a node with several sides (on Γ) the
-    node nudged 1e-9 of the way towards one of the side's cells.
+    node nudged 1e-12 of the way towards one of the side's cells.
 
     Piecewise-defined data (exact solutions discontinuous across Γ) are then evaluated on the
-    side's own piece; continuous data change by O(1e-9 h |∇f|) at fracture nodes only.
+    side's own piece; continuous data change by O(1e-12 h |∇f|) at fracture nodes only.
     """
     mesh = space.fm.mesh
     sides = space.fm.sides
@@ -124,7 +124,7 @@ def _side_points(space: DisplacementSpace) -> np.ndarray:
     first[sides.cell_node_side[::-1]] = np.arange(cell.size)[::-1]
     X = mesh.nodes[sides.side_node]
     multi = np.bincount(sides.side_node, minlength=mesh.n_nodes)[sides.side_node] > 1
-    X[multi] += 1e-9 * (mesh.geometry.cell_centroid[cell[first[multi]]] - X[multi])
+    X[multi] += 1e-12 * (mesh.geometry.cell_centroid[cell[first[multi]]] - X[multi])
     return X
 
 
@@ -227,6 +227,10 @@ class ContactMechanics:
         d, nf, nfree = self.dim, self.n_ff, self.free.size
         A = self.A[self.free][:, self.free].tocoo()
         Bt = self.Bv[:, self.free].T.tocoo()
+        # Newton works on λ̃ = λ/β (a length, like u) with the contact rows multiplied by β: the
+        # Jacobian then has blocks of one scale (~ μ h^{d-2}) instead of μ, |σ| and |σ|/β, which
+        # would cost the direct solver ~8 digits
+        Bt.data = Bt.data * self.law.beta[Bt.col // d]
         # C_u: row (σ, i), col (slot a, j) for every jump entry (σ, a)
         rows = J.row.astype(np.int64)[:, None, None] * d + np.arange(d)[None, :, None]
         colsd = J.col.astype(np.int64)[:, None, None] * d + np.arange(d)[None, None, :]
@@ -287,7 +291,7 @@ class ContactMechanics:
         nfree = self.free.size
         u = udir.copy()
         u[self.free] = x[:nfree]
-        lam = x[nfree:].reshape(self.n_ff, self.dim)
+        lam = x[nfree:].reshape(self.n_ff, self.dim) * self.law.beta[:, None]
         return u, lam
 
     def linearise(self, x, F, udir, q_old=None) -> Linearisation:
@@ -299,12 +303,13 @@ class ContactMechanics:
         Ru = self.A @ u + self.Bv.T @ lam.ravel() - F
         Ru_f = Ru[self.free]
         jrow, jval, keep = self._cu
-        cu = (dC_dq[jrow] * jval[:, None, None])[keep]
-        vals = np.concatenate([self._fixed_vals, cu, dC_dlam.ravel()])
+        b = self.law.beta
+        cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
+        vals = np.concatenate([self._fixed_vals, cu, (dC_dlam * (b * b)[:, None, None]).ravel()])
         Jac = self.pattern.fill(vals)
         # scales: the work-conjugate size of each block (energy-norm scaling)
-        su = max(np.linalg.norm(F[self.free]), np.linalg.norm((self.A @ u)[self.free]),
-                 np.linalg.norm(self.Bv.T @ lam.ravel()), 1e-300)
+        # (A u over all dofs includes the Dirichlet reactions, the load of a purely kinematic case)
+        su = max(np.linalg.norm(F), np.linalg.norm(self.A @ u), np.linalg.norm(self.Bv.T @ lam.ravel()), 1e-300)
         sc = max(np.linalg.norm(self.face_area[:, None] * q), np.linalg.norm((self.face_area / self.law.beta)[:, None]
                                                                             * lam), 1e-300)
         norms = {"equilibrium": float(np.linalg.norm(Ru_f) / su)}
@@ -312,7 +317,7 @@ class ContactMechanics:
             norms["contact"] = float(np.linalg.norm(C) / sc)
         counts = {"open": int(np.sum(state == OPEN)), "stick": int(np.sum(state == STICK)),
                   "slip": int(np.sum(state == SLIP))} if nf else {}
-        return Linearisation(np.concatenate([Ru_f, C.ravel()]), Jac, norms, counts, state)
+        return Linearisation(np.concatenate([Ru_f, (C * b[:, None]).ravel()]), Jac, norms, counts, state)
 
     def solve(self, t: float = 0.0, initial: MechanicsState | None = None, q_old: np.ndarray | None = None,
               verbose: bool = True) -> MechanicsState:
@@ -328,10 +333,10 @@ class ContactMechanics:
         x0 = np.zeros(nfree + self.n_ff * self.dim)
         if initial is not None:
             x0[:nfree] = initial.u.ravel()[self.free]
-            x0[nfree:] = initial.lam.ravel()
+            x0[nfree:] = (initial.lam / self.law.beta[:, None]).ravel()
         else:
             scale = max(np.abs(F).max(initial=0.0), 1e-300)
-            x0[nfree:] = (1e-12 * scale * self.normal).ravel()
+            x0[nfree:] = (1e-12 * scale * self.normal / self.law.beta[:, None]).ravel()
         t1 = time.perf_counter()
 
         def incr(dx, x):

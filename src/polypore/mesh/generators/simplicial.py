@@ -28,7 +28,7 @@ GRADING = 0.4
 
 
 def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_size: float | None = None,
-                    interfaces=(), seed: int = 0) -> Mesh:
+                    interfaces=(), seed: int = 0, grading: float = GRADING) -> Mesh:
     """Triangulate a rectangle / tetrahedralise a box, conforming to fractures and interfaces.
 
     Parameters
@@ -42,7 +42,7 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
         Target cell size in the bulk.
     fracture_size : float, m, optional
         Target cell size on the fractures (default ``size``); the size grows
-        linearly (slope ``GRADING``) to ``size`` away from them.
+        linearly (slope ``grading``, default ``GRADING``) to ``size`` away from them.
     interfaces : sequence of FractureSpec
         Further lines/polygons the mesh must conform to (region boundaries), meshed at ``size``.
     seed : int
@@ -71,6 +71,8 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
     fsize = float(size if fracture_size is None else fracture_size)
     if not (np.isfinite(fsize) and fsize > 0):
         raise InputError("mesh.fracture_size", f"must be a positive number, got {fracture_size}")
+    if not (isinstance(grading, (int, float)) and grading > 0):
+        raise InputError("mesh.grading", f"must be a positive number (size growth per unit distance), got {grading}")
     fsize = min(fsize, float(size))
     box = np.stack([lower, upper])
     fractures, interfaces = list(fractures), list(interfaces)
@@ -95,7 +97,8 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
     }
     with gmsh_session(opts) as gmsh:
         try:
-            nodes, conn = _generate(gmsh, dim, lower, upper, fractures, interfaces, float(size), fsize)
+            nodes, conn = _generate(gmsh, dim, lower, upper, fractures, interfaces, float(size), fsize,
+                                    float(grading))
         except (InputError, MeshError):
             raise
         except Exception as exc:
@@ -125,7 +128,7 @@ def _add_spec(occ, spec, dim) -> list[tuple[int, int]]:
     return [(2, occ.addPlaneSurface([loop]))]
 
 
-def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize):
+def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, grading=GRADING):
     occ = gmsh.model.occ
     ext = upper - lower
     if dim == 2:
@@ -159,7 +162,7 @@ def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize):
         field.setNumber(thr, "SizeMin", fsize)
         field.setNumber(thr, "SizeMax", size)
         field.setNumber(thr, "DistMin", 0.5 * fsize)
-        field.setNumber(thr, "DistMax", 0.5 * fsize + (size - fsize) / GRADING)
+        field.setNumber(thr, "DistMax", 0.5 * fsize + (size - fsize) / grading)
         field.setAsBackgroundMesh(thr)
     else:
         const = field.add("MathEval")

@@ -1,0 +1,139 @@
+"""Exactness of the bubble VEM contact mechanics: affine fields, rigid modes, symmetry, contact branches."""
+
+import numpy as np
+import pytest
+
+from polypore.mesh import FracturedMesh, FractureSpec
+from polypore.mesh.generators.cartesian import cartesian_mesh, grid_coordinates
+from polypore.models.contact import OPEN, SLIP, STICK, ContactLaw, linearise_contact
+from polypore.models.mechanics import ContactMechanics, ContactSpec, DisplacementBC, MechanicsData
+from polypore.solvers.linear import rigid_body_modes
+
+G2 = np.array([[1.0e-3, 2.0e-4], [-1.0e-4, -2.0e-3]])
+G3 = np.array([[1.0e-3, 2.0e-4, -3.0e-4], [-1.0e-4, 5.0e-4, 1.0e-4], [2.0e-4, -1.0e-4, -2.0e-3]])
+
+
+def _mesh(kind, dim, fractures):
+    """Meshes of the unit square/cube conforming to the horizontal plane y (2D) / z (3D) = 0.5."""
+    axes = [grid_coordinates(0, 1, 4, [0.5]) for _ in range(dim)]
+    if kind == "cartesian":
+        return cartesian_mesh(axes)
+    if kind == "perturbed":
+        from polypore.mesh.generators.perturb import perturb
+
+        return perturb(cartesian_mesh(axes), 0.25, fractures, seed=3)
+    if kind == "voronoi":
+        from polypore.mesh.generators.voronoi import voronoi_mesh
+
+        return voronoi_mesh([0] * dim, [1] * dim, 0.3, fractures, seed=1)
+    if kind == "agglomerated":
+        from polypore.mesh import build_network
+        from polypore.mesh.generators.agglomerate import agglomerate
+
+        base = cartesian_mesh([grid_coordinates(0, 1, 6, [0.5]) for _ in range(dim)])
+        return agglomerate(base, build_network(base, fractures).faces, rounds=2, seed=2)
+    if kind == "simplicial":
+        from polypore.mesh.generators.simplicial import simplicial_mesh
+
+        return simplicial_mesh([0] * dim, [1] * dim, fractures, 0.3)
+    raise ValueError(kind)
+
+
+def _plane(dim):
+    if dim == 2:
+        return [FractureSpec("F", np.array([[0.0, 0.5], [1.0, 0.5]]))]
+    return [FractureSpec("F", np.array([[0, 0, 0.5], [1, 0, 0.5], [1, 1, 0.5], [0, 1, 0.5]], float))]
+
+
+def _problem(fm, G, law="coulomb", friction=10.0, two_sided=False, stab=1.0):
+    nc = fm.mesh.n_cells
+    bnames = [b for b in ("xmin", "xmax", "ymin", "ymax", "zmin", "zmax")[: 2 * fm.mesh.dim]]
+    bcs = [DisplacementBC(b, tuple(range(fm.mesh.dim)), lambda X, t: X @ G.T) for b in bnames]
+    data = MechanicsData(mu=np.full(nc, 3.0e9), lam=np.full(nc, 2.0e9), displacement=bcs,
+                         contact=ContactSpec(law, friction, 0.0), two_sided=two_sided, stabilisation=stab)
+    return ContactMechanics(fm, data)
+
+
+KINDS = ["cartesian", "perturbed", "voronoi", "agglomerated", "simplicial"]
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+@pytest.mark.parametrize("kind", KINDS)
+@pytest.mark.parametrize("with_fracture", [False, True])
+def test_affine_displacement_is_reproduced(kind, dim, with_fracture):
+    specs = _plane(dim)
+    mesh = _mesh(kind, dim, specs)
+    fm = FracturedMesh.build(mesh, specs if with_fracture else [])
+    G = G2 if dim == 2 else G3
+    for two_sided in (False, True) if with_fracture else (False,):
+        P = _problem(fm, G, two_sided=two_sided)
+        st = P.solve(verbose=False)
+        # gradients, nodal values and (bonded, compressed) fractures: exact to round-off
+        assert np.abs(P.gradients(st) - G).max() < 1e-11 * np.abs(G).max()
+        X = mesh.nodes[fm.sides.side_node]
+        assert np.abs(st.u[: fm.sides.n_sides] - X @ G.T).max() < 1e-13
+        assert np.abs(st.u[fm.sides.n_sides:]).max(initial=0) < 1e-13   # bubbles of an affine field vanish
+        if with_fracture:
+            assert np.all(st.state == STICK)
+            assert np.abs(P.jumps(st)).max() < 1e-13
+            sigma = P.stress(st)[0]
+            lam_exact = -(sigma @ P.normal.T).T          # λ = −σ n⁺
+            assert np.allclose(st.lam, lam_exact, rtol=1e-9, atol=1e-9 * np.abs(sigma).max())
+
+
+@pytest.mark.parametrize("kind,dim", [("cartesian", 3), ("perturbed", 3), ("voronoi", 2), ("simplicial", 3),
+                                      ("agglomerated", 2)])
+def test_rigid_modes_in_kernel_and_symmetry(kind, dim):
+    specs = _plane(dim)
+    fm = FracturedMesh.build(_mesh(kind, dim, specs), specs)
+    for stab in (0.0, 1.0):
+        P = _problem(fm, G2 if dim == 2 else G3, stab=stab)
+        A = P.A
+        assert abs(A - A.T).max() <= 1e-12 * abs(A).max()
+        # rigid motions: nodal sides take x ↦ a + ω × x, bubbles 0
+        sides = fm.sides
+        R = rigid_body_modes(fm.mesh.nodes[sides.side_node])
+        R = np.vstack([R, np.zeros((P.space.n_bubbles * dim, R.shape[1]))])
+        assert np.abs(A @ R).max() <= 1e-12 * abs(A).max()
+    # the stabilised form is positive definite on non-rigid fields: a random field has positive energy
+    v = np.random.default_rng(0).standard_normal(P.n_dofs)
+    assert v @ (P.A @ v) > 0
+
+
+def test_contact_branches_at_the_kinks():
+    n = np.array([[0.0, 1.0]])
+    beta = np.array([2.0])
+    area = np.array([1.0])
+    law = ContactLaw("coulomb", np.array([0.5]), np.array([0.0]), beta)
+    # y_n = 0 exactly: open
+    *_, st = linearise_contact(law, np.array([[0.3, 0.0]]), np.zeros((1, 2)), np.zeros((1, 2)), n, area)
+    assert st[0] == OPEN
+    # |y_τ| = r = F y_n exactly: stick; slightly above: slip
+    lam = np.array([[0.5, 1.0]])
+    *_, st = linearise_contact(law, lam, np.zeros((1, 2)), np.zeros((1, 2)), n, area)
+    assert st[0] == STICK
+    *_, st = linearise_contact(law, lam + [[1e-12, 0]], np.zeros((1, 2)), np.zeros((1, 2)), n, area)
+    assert st[0] == SLIP
+
+
+@pytest.mark.parametrize("kind", ["coulomb", "tresca", "frictionless"])
+def test_contact_jacobian_matches_finite_differences(kind):
+    rng = np.random.default_rng(1)
+    nf, d = 40, 3
+    n = rng.standard_normal((nf, d))
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    law = ContactLaw(kind, rng.uniform(0.2, 0.8, nf), rng.uniform(0.1, 1.0, nf), rng.uniform(0.5, 2.0, nf))
+    lam = rng.standard_normal((nf, d))
+    q = 0.5 * rng.standard_normal((nf, d))
+    s = q.copy()
+    area = rng.uniform(0.5, 1.5, nf)
+    C, dl, dq, st = linearise_contact(law, lam, q, s, n, area)
+    assert len(set(st.tolist())) >= 2
+    eps = 1e-7
+    for k in range(d):
+        e = np.zeros((nf, d))
+        e[:, k] = eps
+        Cl = linearise_contact(law, lam + e, q, s, n, area)[0]
+        Cq = linearise_contact(law, lam, q + e, s + e, n, area)[0]
+        assert np.allclose((Cl - C) / eps, dl[:, :, k], atol=1e-5)
+        assert np.allclose((Cq - C) / eps, dq[:, :, k], atol=1e-5)
