@@ -42,6 +42,7 @@ Schema (SI units)::
 
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,10 +174,9 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
         if not (np.ptp(mu) == 0 and np.ptp(lam) == 0):
             raise InputError("exact.solution", "exact solutions need one uniform material")
         if name == "single-crack":
-            c = root.section("contact", None)
+            # the friction coefficient is filled in once [contact] has been read
             exact = SingleCrack(ex.number("sigma", positive=True), np.deg2rad(ex.number("psi_deg", lo=0, hi=90)),
-                                ex.number("half_length", positive=True), float(E[0]), float(nu[0]),
-                                float(c.data.get("friction", 0.0)))
+                                ex.number("half_length", positive=True), float(E[0]), float(nu[0]), 0.0)
         else:
             exact = get_solution(name, mu[0], lam[0])
         ex.done()
@@ -238,6 +238,10 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
     threshold = face_values("threshold", 0.0)
     beta = c.number("beta", 1.0, positive=True)
     c.done()
+    if isinstance(exact, SingleCrack):
+        if np.ptp(friction) > 0:
+            raise InputError("contact.friction", "the single-crack analytic solution needs one friction coefficient")
+        exact = dataclasses.replace(exact, friction=float(friction[0]) if friction.size else 0.0)
     s = root.section("solver", None)
     backend = s.string("linear", "auto", BACKENDS)
     newton = NewtonOptions(tol=s.number("tolerance", 1e-8, positive=True),
