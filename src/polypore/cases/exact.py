@@ -115,7 +115,60 @@ def frictionless_3d(mu: float = 1.0, lam: float = 1.0) -> PiecewiseSolution:
     return build_solution("frictionless-3d", 3, [top, left, right], selector, mu, lam)
 
 
-SOLUTIONS = {"frictionless-3d": frictionless_3d}
+def _pos4(a):
+    """max(0, a)^4: C³ across a = 0, so f = −div σ stays bounded."""
+    return S.Piecewise((a**4, a > 0), (0, True))
+
+
+FRICTION_C2 = 0.5
+SLIP_AMPLITUDE_C2 = 300.0
+
+
+def contact_manufactured(dim: int, mu: float = 1.0, lam: float = 1.0, F: float = FRICTION_C2) -> PiecewiseSolution:
+    """Case C2 (cases.md): a Tresca/Coulomb manufactured solution with open, slip and stick zones.
+
+    Γ = {y = 0 (2D) / z = 0 (3D), −1 < x < 1/2} in Ω = (−1, 1)^d: it reaches ∂Ω at x = −1 and
+    has a tip at x = 1/2. K⁺ is below Γ, n⁺ = e_y (e_z). With e the normal coordinate (y or z):
+
+    * u_c = e (τ(x)/μ, s(x)/(λ+2μ)) on all of Ω (normal/tangential parts in the (x, e) plane) has
+      traction σ(u_c) n⁺ = (τ, s) on e = 0, so λ = −(τ, s): λ_n = −s, λ_τ = −τ e_x;
+    * w = (f + e g, h + e k) with g = −h', k = −λ f'/(λ+2μ), added above Γ only, has zero
+      traction on e = 0 and gives the jump [[u]] = −(f, h).
+
+    Zones along Γ: x < −1/2 open (s = τ = 0, h = (−1/2 − x)^4 > 0); −1/2 < x < 1/10 slip
+    (h = 0, f = C (x+1/2)^4 (1/10 − x)^4 > 0, τ = F|s|, so λ_τ ∥ [[u]]_τ and |λ_τ| = F λ_n);
+    1/10 < x < 1/2 stick (f = h = 0, |τ| = F|s| χ with χ < 1). s = −r/(r + 0.2⁴),
+    r = (x + 1/2)^4_+, so that λ_n is O(1) where the fracture is closed. The Tresca
+    variant uses the threshold g(x) = F|s(x)|, which makes the same u, λ its solution.
+    """
+    e = Y if dim == 2 else Z
+    x = X
+    r4 = _pos4(x + S.Rational(1, 2))
+    s_ = -r4 / (r4 + S.Rational(1, 5) ** 4)   # rises smoothly from 0 at x = −1/2 to O(1) by x ≈ −0.3
+    chi = 1 - 10 * _pos4(x - S.Rational(1, 10))
+    tau = -F * s_ * chi
+    f = SLIP_AMPLITUDE_C2 * _pos4(x + S.Rational(1, 2)) * _pos4(S.Rational(1, 10) - x)
+    h = _pos4(-S.Rational(1, 2) - x)
+    g = -S.diff(h, x)
+    k = -lam * S.diff(f, x) / (lam + 2 * mu)
+    uc_t, uc_n = e * tau / mu, e * s_ / (lam + 2 * mu)
+    w_t, w_n = f + e * g, h + e * k
+    if dim == 2:
+        below = [uc_t, uc_n]
+        above = [uc_t + w_t, uc_n + w_n]
+    else:
+        below = [uc_t, 0, uc_n]
+        above = [uc_t + w_t, 0, uc_n + w_n]
+
+    def selector(P):
+        return np.where(P[:, dim - 1] >= 0, 1, 0)
+
+    return build_solution(f"contact-manufactured-{dim}d", dim, [below, above], selector, mu, lam)
+
+
+SOLUTIONS = {"frictionless-3d": frictionless_3d,
+             "contact-2d": lambda mu, lam: contact_manufactured(2, mu, lam),
+             "contact-3d": lambda mu, lam: contact_manufactured(3, mu, lam)}
 PROFILES = ("single-crack",)
 
 

@@ -48,6 +48,11 @@ class NewtonOptions:
     increment_tol: float = 1e-8
     max_iterations: int = 50
     label: str = "Newton"
+    # Full steps for the first `free_steps` iterations (the active set settles), then
+    # backtracking on the scaled residual norm: semi-smooth Newton on friction laws can cycle
+    # between active sets, a damped step breaks the cycle.
+    free_steps: int = 6
+    min_step: float = 1.0 / 64
 
 
 @dataclass
@@ -59,6 +64,10 @@ class NewtonResult:
     history: list
     seconds_linear: float
     seconds_assembly: float
+
+
+def _merit(lin: Linearisation) -> float:
+    return float(np.sqrt(sum(v * v for v in lin.block_norms.values())))
 
 
 def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.ndarray, solver: LinearSolver,
@@ -75,19 +84,20 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
     t_lin = t_asm = 0.0
     prev_active = None
     inc = np.inf
+    step = 1.0
+    t0 = time.perf_counter()
+    lin = linearise(x)
+    t_asm += time.perf_counter() - t0
     for it in range(options.max_iterations + 1):
-        t0 = time.perf_counter()
-        lin = linearise(x)
-        t_asm += time.perf_counter() - t0
         rnorm = max(lin.block_norms.values()) if lin.block_norms else 0.0
         same = prev_active is not None and lin.active_set is not None and np.array_equal(prev_active, lin.active_set)
-        row = {"iteration": it, "residual": rnorm, "increment": inc, **lin.block_norms, **lin.counts}
+        row = {"iteration": it, "residual": rnorm, "increment": inc, "step": step, **lin.block_norms, **lin.counts}
         history.append(row)
         if verbose:
             states = " ".join(f"{k} {v}" for k, v in lin.counts.items())
             blocks = " ".join(f"{k} {v:.2e}" for k, v in lin.block_norms.items())
-            log.info("%s it %2d: residual %.3e (%s) increment %.2e  %s", options.label, it, rnorm, blocks,
-                     inc if np.isfinite(inc) else float("nan"), states)
+            log.info("%s it %2d: residual %.3e (%s) increment %.2e%s  %s", options.label, it, rnorm, blocks,
+                     inc if np.isfinite(inc) else float("nan"), f" (step {step:g})" if step < 1 else "", states)
         if not np.all(np.isfinite(lin.residual)):
             raise RunError(f"{options.label}: the residual became NaN/Inf at iteration {it}")
         if rnorm <= options.tol and (inc <= options.increment_tol or same or it == 0 and rnorm == 0.0):
@@ -98,8 +108,19 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
         t0 = time.perf_counter()
         dx = solver.solve(lin.jacobian, -lin.residual)
         t_lin += time.perf_counter() - t0
-        inc = increment_norm(dx, x)
-        x = x + dx
+        merit0 = _merit(lin)
+        step = 1.0
+        t0 = time.perf_counter()
+        while True:
+            trial = linearise(x + step * dx)
+            if it < options.free_steps or step <= options.min_step or \
+                    _merit(trial) <= (1 - 1e-4 * step) * merit0 or not np.isfinite(merit0):
+                break
+            step *= 0.5
+        t_asm += time.perf_counter() - t0
+        inc = increment_norm(step * dx, x)
+        x = x + step * dx
+        lin = trial
     states = ", ".join(f"{v} {k}" for k, v in lin.counts.items())
     raise RunError(f"{options.label} did not converge in {options.max_iterations} iterations: scaled residual "
                    f"{rnorm:.3e} > tol {options.tol:g} (" + ", ".join(f"{k} {v:.2e}" for k, v in
