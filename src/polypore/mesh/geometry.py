@@ -77,16 +77,25 @@ def _chunks(idx: np.ndarray, m: int):
         yield a, idx[a:a + step]
 
 
-def _diameters(nodes: np.ndarray, rows: Ragged, chunk_entries: int = 200_000) -> np.ndarray:
+def _diameters(nodes: np.ndarray, rows: Ragged, chunk_entries: int = 400_000) -> np.ndarray:
     """(len(rows),) max pairwise distance between the nodes of each row."""
     out = np.zeros(len(rows))
     for m, ids, conn in rows.groups():
         step = max(1, chunk_entries // (m * m))
         for a in range(0, len(ids), step):
             X = nodes[conn[a:a + step]]
-            d2 = ((X[:, :, None, :] - X[:, None, :, :]) ** 2).sum(-1)
-            out[ids[a:a + step]] = np.sqrt(d2.reshape(len(X), -1).max(1))
+            X = X - X[:, :1]                        # local frame: no cancellation in the Gram form
+            sq = np.einsum("kmd,kmd->km", X, X)
+            d2 = sq[:, :, None] + sq[:, None, :] - 2.0 * np.matmul(X, X.transpose(0, 2, 1))
+            out[ids[a:a + step]] = np.sqrt(np.maximum(d2.reshape(len(X), -1).max(1), 0.0))
     return out
+
+
+def _accumulate(out: np.ndarray, idx: np.ndarray, w: np.ndarray) -> None:
+    """out[idx] += w for indices spanning a short range (a batch of consecutive cells)."""
+    lo = int(idx.min())
+    hi = int(idx.max()) + 1
+    out[lo:hi] += np.bincount(idx - lo, weights=w, minlength=hi - lo)
 
 
 def _face_pieces_3d(X: np.ndarray):
@@ -211,23 +220,25 @@ def compute_geometry(dim: int, nodes: np.ndarray, face_nodes: Ragged, cell_faces
                 v = inc_sign[sel] * 0.5 * (e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0])
                 v = v[:, None]                      # (k, 1): one piece per face
                 pc = (p0 + X[:, 0] + X[:, 1]) * share
-                vol += np.bincount(cells, weights=v[:, 0], minlength=nc)
+                _accumulate(vol, cells, v[:, 0])
                 for k in range(dim):
-                    cnum[:, k] += np.bincount(cells, weights=v[:, 0] * pc[:, k], minlength=nc)
+                    _accumulate(cnum[:, k], cells, v[:, 0] * pc[:, k])
                 node_w = np.repeat(v * share, 2, axis=1)      # (k, 2)
             else:
                 xc, Y, a = _face_pieces_3d(X)
                 a *= inc_sign[sel][:, None, None]
                 v = np.einsum("kmi,ki->km", a, xc - p0) / 3.0        # sub-tetrahedra (x0, x_c, s_i, s_{i+1})
                 pc = (p0[:, None, :] + xc[:, None, :] + X + np.roll(X, -1, axis=1)) * share
-                vol += np.bincount(cells, weights=v.sum(1), minlength=nc)
+                _accumulate(vol, cells, v.sum(1))
                 for k in range(dim):
-                    cnum[:, k] += np.bincount(cells, weights=(v * pc[:, :, k]).sum(1), minlength=nc)
+                    _accumulate(cnum[:, k], cells, (v * pc[:, :, k]).sum(1))
                 vf = v.sum(axis=1, keepdims=True)
                 node_w = (v + np.roll(v, 1, axis=1)) * share + vf * share / m
             keys = np.repeat(cells.astype(np.int64) * n_nodes, m) + conn.ravel()
-            pos = np.searchsorted(cn_keys, keys)
-            cweight += np.bincount(pos, weights=node_w.ravel(), minlength=cell_nodes.nnz)
+            # incidences are in cell order, so a batch covers consecutive cells: search their keys only
+            k0, k1 = cell_nodes.offsets[cells[0]], cell_nodes.offsets[cells[-1] + 1]
+            pos = k0 + np.searchsorted(cn_keys[k0:k1], keys)
+            _accumulate(cweight, pos, node_w.ravel())
     bad = ~(vol > 0)
     if np.any(bad):
         b = np.flatnonzero(bad)

@@ -141,7 +141,8 @@ def cell_node_sets(face_nodes: Ragged, cell_faces: Ragged, n_nodes: int) -> Ragg
         faces = cell_faces.values[cell_faces.offsets[c0]:cell_faces.offsets[c1]]
         sub = face_nodes.take(faces)
         owner = np.repeat(inc_cell[cell_faces.offsets[c0]:cell_faces.offsets[c1]], sub.counts)
-        keys = np.unique(owner.astype(np.int64) * n_nodes + sub.values)
+        keys = np.sort(owner.astype(np.int64) * n_nodes + sub.values)
+        keys = keys[np.concatenate([[True], keys[1:] != keys[:-1]])]
         cells = keys // n_nodes
         counts[c0:c1] = np.bincount(cells - c0, minlength=c1 - c0)
         parts.append((keys - cells * n_nodes).astype(INDEX))

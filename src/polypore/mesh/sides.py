@@ -55,19 +55,32 @@ def node_sides(mesh: Mesh, fracture_faces: np.ndarray) -> NodeSides:
     """
     nn = mesh.n_nodes
     cn = mesh.cell_nodes
-    keys = cn.rows_of_entries().astype(np.int64) * nn + cn.values
-    cut = np.zeros(mesh.n_faces, bool)
-    cut[np.asarray(fracture_faces, dtype=np.int64)] = True
-    glue = np.flatnonzero((mesh.face_cells[:, 1] >= 0) & ~cut)
-    sub = mesh.face_nodes.take(glue)
-    fc = mesh.face_cells[glue]
-    K = np.repeat(fc[:, 0], sub.counts).astype(np.int64)
-    L = np.repeat(fc[:, 1], sub.counts).astype(np.int64)
-    a = np.searchsorted(keys, K * nn + sub.values)
-    b = np.searchsorted(keys, L * nn + sub.values)
     n = cn.nnz
-    graph = sp.coo_array((np.ones(a.size, dtype=np.int8), (a, b)), shape=(n, n)).tocsr()
-    n_comp, label = connected_components(graph, directed=False)
+    fracture_faces = np.asarray(fracture_faces, dtype=np.int64)
+    # Only nodes of fracture faces can have several sides: the graph is built on their
+    # (cell, node) incidences alone; every other node has one side holding all its cells.
+    on_frac = np.zeros(nn, bool)
+    on_frac[mesh.face_nodes.take(fracture_faces).values] = True
+    inc = np.flatnonzero(on_frac[cn.values])
+    label_all = cn.values.astype(np.int64)
+    if inc.size:
+        keys = cn.rows_of_entries()[inc].astype(np.int64) * nn + cn.values[inc]
+        cut = np.zeros(mesh.n_faces, bool)
+        cut[fracture_faces] = True
+        glue = np.flatnonzero((mesh.face_cells[:, 1] >= 0) & ~cut)
+        sub = mesh.face_nodes.take(glue)
+        keep = on_frac[sub.values]
+        ent = np.repeat(np.arange(glue.size), sub.counts)[keep]
+        nodes = sub.values[keep].astype(np.int64)
+        fc = mesh.face_cells[glue[ent]].astype(np.int64)
+        a = np.searchsorted(keys, fc[:, 0] * nn + nodes)
+        b = np.searchsorted(keys, fc[:, 1] * nn + nodes)
+        graph = sp.coo_array((np.ones(a.size, dtype=np.int8), (a, b)), shape=(inc.size, inc.size)).tocsr()
+        _, local = connected_components(graph, directed=False)
+        label_all[inc] = nn + local
+    _, label = np.unique(label_all, return_inverse=True)
+    label = label.ravel()
+    n_comp = int(label.max()) + 1 if n else 0
     # number sides node by node (stable, reproducible): order components by (node, first incidence)
     first = np.full(n_comp, n, dtype=np.int64)
     np.minimum.at(first, label, np.arange(n))
