@@ -69,16 +69,17 @@ def cmd_mesh(args) -> int:
 
 def cmd_run(args) -> int:
     from .cases.casefile import load_case
-    from .cases.run import run_static
+    from .cases.run import run_case
 
     case = load_case(args.case, args.set or [])
     out = _out_dir(args, case.name)
-    summary = run_static(case, out)
+    summary = run_case(case, out)
     st = summary["steps"][-1]
-    print(f"case {case.name}: {summary['mesh']['cells']} cells, {summary['mesh']['unknowns']} unknowns; "
-          f"{st['newton_iterations']} Newton iterations, residual {st['residual']:.2e}; "
-          f"faces open {st['open']}, stick {st['stick']}, slip {st['slip']}; "
-          f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB")
+    line = f"case {case.name}: {summary['mesh']['cells']} cells, {summary['mesh']['unknowns']} unknowns; "
+    if "newton_iterations" in st:
+        line += (f"{st['newton_iterations']} Newton iterations, residual {st['residual']:.2e}; "
+                 f"faces open {st['open']}, stick {st['stick']}, slip {st['slip']}; ")
+    print(line + f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB")
     for name, v in summary.get("errors", {}).items():
         print(f"  {name} = {v:.4e}")
     print(f"wrote {out}/")

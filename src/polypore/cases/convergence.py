@@ -14,7 +14,7 @@ from ..io.atomic import atomic_write_text
 from ..io.plots import convergence_plot
 from ..io.results import staged_run_directory, write_json
 from .casefile import CaseFile
-from .run import solve_static, unknowns
+from .run import convergence_point
 
 log = logging.getLogger("polypore")
 
@@ -51,14 +51,12 @@ def run_convergence(case: CaseFile, levels: int, out: Path) -> dict:
     for k in range(levels):
         t0 = time.perf_counter()
         c = refined(case, k)
-        problem, st, setup, errors, _ = solve_static(c)
+        point = convergence_point(c)
+        errors, h = point["errors"], point["h"]
         if not errors:
             raise InputError("exact", f"case {case.name!r} has no exact or analytic solution ([exact] table); "
                              "a convergence study needs one")
-        h = float(problem.fm.mesh.geometry.cell_diameter.max())
-        rows.append({"level": k, "h": h, "cells": problem.fm.mesh.n_cells, "unknowns": unknowns(problem),
-                     "newton_iterations": st.newton_iterations, "seconds": time.perf_counter() - t0,
-                     "errors": errors})
+        rows.append({"level": k, **point, "seconds": time.perf_counter() - t0})
         log.info("level %d: h %.4g, %d unknowns, %s", k, h, rows[-1]["unknowns"],
                  ", ".join(f"{n} {v:.3e}" for n, v in errors.items()))
     names = list(rows[0]["errors"])
@@ -69,7 +67,7 @@ def run_convergence(case: CaseFile, levels: int, out: Path) -> dict:
         lines = [",".join(["level", "h", "cells", "unknowns", "newton_iterations"] + names)]
         for r in rows:
             lines.append(",".join([str(r["level"]), f"{r['h']:.6g}", str(r["cells"]), str(r["unknowns"]),
-                                   str(r["newton_iterations"])] + [f"{r['errors'][n]:.6e}" for n in names]))
+                                   str(r.get("newton_iterations", ""))] + [f"{r['errors'][n]:.6e}" for n in names]))
         atomic_write_text(stage / "convergence.csv", "\n".join(lines) + "\n")
         convergence_plot(stage / "convergence.png", hs, {n: [r["errors"][n] for r in rows] for n in names}, rates,
                          title=f"{case.name}: errors against mesh size")

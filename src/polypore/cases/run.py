@@ -58,6 +58,44 @@ def unknowns(problem) -> int:
     return int(problem.free.size + problem.n_ff * problem.dim)
 
 
+MODELS = ("mechanics", "flow")
+
+
+def case_model(case: CaseFile) -> str:
+    """The physics a case asks for: its ``model`` key, else "flow" for a case with a [flow] table
+    and no mechanics, else "mechanics"."""
+    from ..core.errors import InputError
+
+    model = case.data.get("model")
+    if model is None:
+        has_mech = any(k in case.data for k in ("mechanics", "material", "materials", "contact"))
+        model = "flow" if "flow" in case.data and not has_mech else "mechanics"
+    if model not in MODELS:
+        raise InputError("model", f"unknown model {model!r}; allowed: {', '.join(MODELS)}")
+    return model
+
+
+def run_case(case: CaseFile, out: Path) -> dict:
+    """``polypore run``: dispatch on the case's model; returns summary.json's content."""
+    if case_model(case) == "flow":
+        from .flow_run import run_flow
+
+        return run_flow(case, out)
+    return run_static(case, out)
+
+
+def convergence_point(case: CaseFile) -> dict:
+    """Solve a case with an exact solution once: h (max cell diameter, m), cells, unknowns,
+    iterations and the error measures (for ``polypore convergence``)."""
+    if case_model(case) == "flow":
+        from .flow_run import flow_convergence_point
+
+        return flow_convergence_point(case)
+    problem, st, setup, errors, _ = solve_static(case)
+    return {"h": float(problem.fm.mesh.geometry.cell_diameter.max()), "cells": problem.fm.mesh.n_cells,
+            "unknowns": unknowns(problem), "newton_iterations": st.newton_iterations, "errors": errors}
+
+
 def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
     """Run a static case and write its files into ``out``; return the summary."""
     t0 = time.perf_counter()
