@@ -193,7 +193,9 @@ def mesh_from_cells(nodes: np.ndarray, blocks: Mapping[str, np.ndarray], *, cell
         polys = Ragged.from_counts(counts, np.concatenate([r.ravel() for r in rows]))
         return mesh_from_polygons(nodes, polys, cell_region=cell_region, region_names=region_names,
                                   boundary=boundary)
-    loop_rows, loop_cell = [], []
+    # every block's loops are cell-major (cell by cell, local faces in template order) and blocks
+    # are numbered one after the other, so the concatenation is grouped by cell: no sort needed
+    counts, values, loop_cell = [], [], []
     start = 0
     needs_orient = False
     for kind, conn in blocks.items():
@@ -205,19 +207,21 @@ def mesh_from_cells(nodes: np.ndarray, blocks: Mapping[str, np.ndarray], *, cell
             X = nodes[conn]
             vol = np.einsum("ki,ki->k", X[:, 1] - X[:, 0], np.cross(X[:, 2] - X[:, 0], X[:, 3] - X[:, 0]))
             inverted = vol < 0
-            conn = conn.copy()
-            conn[inverted] = conn[inverted][:, [0, 2, 1, 3]]
+            del X, vol
+            if inverted.any():
+                conn = conn.copy()
+                conn[inverted] = conn[inverted][:, [0, 2, 1, 3]]
         else:
             needs_orient = True
-        for lf in CELL_FACES_3D[kind]:
-            loop_rows.append((len(lf), conn[:, lf]))
-            loop_cell.append(np.arange(start, start + nck))
+        tmpl = CELL_FACES_3D[kind]
+        sizes = np.array([len(lf) for lf in tmpl])
+        flat_idx = np.concatenate(tmpl)
+        counts.append(np.tile(sizes, nck))
+        values.append(conn[:, flat_idx].ravel())
+        loop_cell.append(np.repeat(np.arange(start, start + nck, dtype=INDEX), len(tmpl)))
         start += nck
-    # order loops by cell
-    cells = np.concatenate(loop_cell)
-    order = np.argsort(cells, kind="stable")
-    counts = np.concatenate([np.full(len(c), m) for m, c in loop_rows])
-    flat = Ragged.from_counts(counts, np.concatenate([c.ravel() for _, c in loop_rows]))
-    loops = flat.take(order)
-    return mesh_from_polyhedra(nodes, loops, cells[order], oriented=not needs_orient, cell_region=cell_region,
+    loops = Ragged.from_counts(np.concatenate(counts), np.concatenate(values))
+    del values
+    return mesh_from_polyhedra(nodes, loops, np.concatenate(loop_cell), oriented=not needs_orient,
+                               cell_region=cell_region,
                                region_names=region_names, boundary=boundary)

@@ -67,7 +67,7 @@ class Geometry:
         return sum(getattr(self, n).nbytes for n in self.__dataclass_fields__)
 
 
-CHUNK = 32768  # rows per batch: bounds the temporaries of the batched kernels
+CHUNK = 8192  # rows per batch: bounds the temporaries of the batched kernels
 
 
 def _chunks(idx: np.ndarray, m: int):
@@ -201,8 +201,8 @@ def compute_geometry(dim: int, nodes: np.ndarray, face_nodes: Ragged, cell_faces
 
     inc_cell = cell_faces.rows_of_entries()
     inc_face = cell_faces.values
-    inc_sign = cell_face_sign.astype(float)
-    fcount = face_nodes.counts[inc_face]
+    inc_sign = cell_face_sign
+    fcount = face_nodes.counts[inc_face].astype(np.int32)
     vol = np.zeros(nc)
     cnum = np.zeros((nc, dim))
     cweight = np.zeros(cell_nodes.nnz)
