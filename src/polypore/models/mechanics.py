@@ -128,6 +128,38 @@ def _side_points(space: DisplacementSpace) -> np.ndarray:
     return X
 
 
+def _face_average(mesh, faces: np.ndarray, cells: np.ndarray, fn: VectorField, t: float) -> np.ndarray:
+    """(k, d) (1/|σ|)∫_σ fn for the given faces, evaluated from the side of ``cells``."""
+    d = mesh.dim
+    g = mesh.geometry
+    out = np.zeros((len(faces), d))
+    fn_ = mesh.face_nodes
+    xK = g.cell_centroid[cells]
+    sub = fn_.take(faces)
+    for m, rows, conn in sub.groups():
+        X = mesh.nodes[conn]                                     # (k, m, d)
+        if d == 2:
+            a, b = X[:, 0], X[:, 1]
+            gp = np.array([0.5 - np.sqrt(0.15), 0.5, 0.5 + np.sqrt(0.15)])
+            gw = np.array([5.0, 8.0, 5.0]) / 18.0
+            P = a[:, None] + gp[None, :, None] * (b - a)[:, None]   # (k, 3, d)
+            W = np.broadcast_to(gw, (len(rows), 3))
+        else:
+            xc = X.mean(axis=1)
+            Xn = np.roll(X, -1, axis=1)
+            area = 0.5 * np.linalg.norm(np.cross(X - xc[:, None], Xn - xc[:, None]), axis=2)   # (k, m)
+            # edge-midpoint rule on each sub-triangle (x_c, s_i, s_{i+1}): exact for quadratics
+            mids = np.stack([(xc[:, None] + X) / 2, (X + Xn) / 2, (Xn + xc[:, None]) / 2], axis=2)  # (k, m, 3, d)
+            P = mids.reshape(len(rows), 3 * m, d)
+            W = np.repeat(area / 3.0, 3, axis=1)
+            W = W / W.sum(axis=1, keepdims=True)
+        k, q = P.shape[:2]
+        Pn = P + 1e-12 * (xK[rows][:, None, :] - P)
+        vals = np.asarray(fn(Pn.reshape(-1, d), t), float).reshape(k, q, d)
+        out[rows] = np.einsum("kq,kqd->kd", W, vals)
+    return out
+
+
 class ContactMechanics:
     """The discrete static contact-mechanics problem on a fractured mesh.
 
@@ -351,6 +383,26 @@ class ContactMechanics:
         return MechanicsState(u.reshape(-1, self.dim), lam, lin_state, t, res.iterations, res.residual, res.history,
                               {"loads": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear,
                                "total": time.perf_counter() - t0})
+
+    # ---- interpolation -------------------------------------------------------------------------
+    def interpolate(self, fn: VectorField, t: float = 0.0) -> np.ndarray:
+        """(n_slots, d) interpolate I_D u of a field (scheme.md §3, "Interpolator").
+
+        Nodal slots: u|_K(x_s) (evaluated on the side's own piece for data discontinuous across
+        Γ); bubbles: (1/|σ|)∫_σ γ^{Kσ}u − the nodal face mean from K, the face integral by a
+        quadrature exact for quadratics on the face's sub-triangles (3D) or 3-point Gauss (2D).
+        """
+        d = self.dim
+        u = np.zeros((self.space.n_slots, d))
+        u[: self.space.n_sides] = np.asarray(fn(self.side_points, t), float).reshape(-1, d)
+        if self.space.n_bubbles:
+            mesh = self.fm.mesh
+            faces = self.fm.network.faces[self.space.bubble_face]
+            cells = self.space.bubble_cell
+            mean = _face_average(mesh, faces, cells, fn, t)
+            M = face_mean_operator(self.space, faces, cells)
+            u[self.space.n_sides:] = mean - M @ u
+        return u
 
     # ---- post-processing ---------------------------------------------------------------------
     def jumps(self, st: MechanicsState) -> np.ndarray:
