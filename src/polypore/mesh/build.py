@@ -76,6 +76,25 @@ def _faces_of_segments(face_nodes: Ragged, seg: np.ndarray) -> np.ndarray:
     return order[pos[ok]].astype(INDEX)
 
 
+def _packed_keys(conn: np.ndarray, n_nodes: int) -> np.ndarray:
+    """One int64 key per loop from its three smallest nodes (8 bytes instead of 4m), or the
+    void keys of whole rows when node ids do not fit in 21 bits."""
+    if n_nodes >= 2 ** 21:
+        return _void_keys(conn)
+    k3 = np.sort(conn, axis=1)[:, :3].astype(np.int64) if conn.shape[1] > 3 else np.sort(conn, axis=1).astype(np.int64)
+    return (k3[:, 0] << 42) | (k3[:, 1] << 21) | k3[:, 2]
+
+
+def _same_node_sets(conn: np.ndarray, first: np.ndarray, inv: np.ndarray, batch: int = 65536) -> bool:
+    """True if every loop has the node set of its group's representative (checked in batches)."""
+    for a in range(0, len(conn), batch):
+        c = np.sort(conn[a:a + batch], axis=1)
+        r = np.sort(conn[first[inv[a:a + batch]]], axis=1)
+        if not np.array_equal(c, r):
+            return False
+    return True
+
+
 def dedupe_faces(loops: Ragged):
     """Merge equal face loops (same node set) into faces.
 
@@ -88,14 +107,22 @@ def dedupe_faces(loops: Ragged):
     loop_sign = np.empty(n, dtype=np.int8)
     face_blocks = []
     base = 0
+    n_nodes = int(loops.values.max()) + 1 if loops.nnz else 0
     for m, rows, conn in loops.groups():
-        keys = _void_keys(conn)
+        keys = _packed_keys(conn, n_nodes)
         _, first, inv = np.unique(keys, return_index=True, return_inverse=True)
+        del keys
+        if m > 3 and not _same_node_sets(conn, first, inv):
+            # two different faces share their three smallest nodes (hanging nodes on an edge)
+            _, first, inv = np.unique(_void_keys(conn), return_index=True, return_inverse=True)
+        inv = inv.astype(INDEX).ravel()
         rep = conn[first]                                 # face loops
-        mine = rep[inv]                                   # (k, m) representative loop of each loop
-        start = np.argmax(conn == mine[:, :1], axis=1)    # where the face's first node sits in my loop
+        a0 = rep[inv, 0]                                  # first two nodes of each loop's face
+        a1 = rep[inv, 1]
+        start = np.argmax(conn == a0[:, None], axis=1)    # where the face's first node sits in my loop
         nxt = conn[np.arange(len(rows)), (start + 1) % m]
-        loop_sign[rows] = np.where(nxt == mine[:, 1], 1, -1)
+        del start, a0
+        loop_sign[rows] = np.where(nxt == a1, 1, -1)
         loop_face[rows] = base + inv
         face_blocks.append(rep)
         base += len(first)

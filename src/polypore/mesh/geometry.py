@@ -22,7 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import MeshError
-from ..core.ragged import Ragged, frozen
+from ..core.ragged import INDEX, Ragged, frozen
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,13 +77,15 @@ def _chunks(idx: np.ndarray, m: int):
         yield a, idx[a:a + step]
 
 
-def _diameters(nodes: np.ndarray, rows: Ragged, chunk_entries: int = 400_000) -> np.ndarray:
+def _diameters(nodes: np.ndarray, rows: Ragged, chunk_entries: int = 100_000) -> np.ndarray:
     """(len(rows),) max pairwise distance between the nodes of each row."""
     out = np.zeros(len(rows))
-    for m, ids, conn in rows.groups():
+    counts = rows.counts
+    for m in np.unique(counts):
+        ids = np.flatnonzero(counts == m).astype(INDEX)
         step = max(1, chunk_entries // (m * m))
         for a in range(0, len(ids), step):
-            X = nodes[conn[a:a + step]]
+            X = nodes[rows.values[rows.positions(ids[a:a + step], int(m))]]
             X = X - X[:, :1]                        # local frame: no cancellation in the Gram form
             sq = np.einsum("kmd,kmd->km", X, X)
             d2 = sq[:, :, None] + sq[:, None, :] - 2.0 * np.matmul(X, X.transpose(0, 2, 1))
@@ -198,6 +200,7 @@ def compute_geometry(dim: int, nodes: np.ndarray, face_nodes: Ragged, cell_faces
     for k in range(dim):
         x0[:, k] = np.bincount(cn_cell, weights=nodes[cell_nodes.values, k], minlength=nc) / cn_count
     cn_keys = cn_cell.astype(np.int64) * n_nodes + cell_nodes.values
+    del cn_cell
 
     inc_cell = cell_faces.rows_of_entries()
     inc_face = cell_faces.values
@@ -208,7 +211,7 @@ def compute_geometry(dim: int, nodes: np.ndarray, face_nodes: Ragged, cell_faces
     cweight = np.zeros(cell_nodes.nnz)
     share = 1.0 / (dim + 1)
     for m in np.unique(fcount):
-        for _, sel in _chunks(np.flatnonzero(fcount == m), m):
+        for _, sel in _chunks(np.flatnonzero(fcount == m).astype(INDEX), m):
             conn = face_nodes.values[face_nodes.positions(inc_face[sel], m)]
             X = nodes[conn]
             cells = inc_cell[sel]
