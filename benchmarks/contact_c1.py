@@ -23,6 +23,9 @@ from polypore.solvers.linear import LinearSolver
 
 
 def main():
+    import logging
+
+    logging.basicConfig(level=logging.INFO, format="%(message)s")
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=float, default=0.062, help="gmsh size (0.062 gives about 1e5 tetrahedra)")
     ap.add_argument("--linear", default="auto")

@@ -30,6 +30,7 @@ Schema (SI units)::
     friction = 0.5             # F; expression of x, y, z and D (distance to the fracture's nearest tip)
     threshold = 0              # Tresca g (Pa), same variables
     beta = 1.0                 # c in β = c (2μ + λ_L)/h_σ
+    initial = "closed"         # first Newton iterate: closed (bonded) or open (λ = 0)
 
     [exact]
     solution = "frictionless-3d"
@@ -237,6 +238,7 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
     friction = face_values("friction", 0.0)
     threshold = face_values("threshold", 0.0)
     beta = c.number("beta", 1.0, positive=True)
+    initial = c.string("initial", "closed", ("closed", "open"))
     c.done()
     if isinstance(exact, SingleCrack):
         if np.ptp(friction) > 0:
@@ -251,6 +253,6 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
     s.done()
     data = MechanicsData(mu=mu, lam=lam, displacement=tuple(disp), traction=tuple(trac), body_force=body_f,
                          matrix_pressure=pm_f, biot=biot, fracture_pressure=pf_f, initial_stress=s0_f,
-                         contact=ContactSpec(law, friction, threshold, beta), two_sided=bubbles == "two-sided",
+                         contact=ContactSpec(law, friction, threshold, beta, initial), two_sided=bubbles == "two-sided",
                          stabilisation=stab)
     return MechanicsSetup(data, LinearSolver(backend), newton, exact, E, nu)

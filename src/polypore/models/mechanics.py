@@ -62,6 +62,7 @@ class ContactSpec:
     friction: np.ndarray | float = 0.0
     threshold: np.ndarray | float = 0.0
     beta_scale: float = 1.0
+    initial: str = "closed"   # first Newton iterate: "closed" (bonded, always solvable) or "open" (λ = 0)
 
 
 @dataclass(frozen=True)
@@ -356,7 +357,9 @@ class ContactMechanics:
         """Solve the static problem at time t (loads evaluated at t).
 
         Starts from ``initial`` or, by default, from u = Dirichlet values and every fracture face
-        closed and stuck (λ = tiny compression), whose linearisation is the bonded problem.
+        closed and stuck (λ = tiny compression), whose linearisation is the bonded problem; with
+        ``contact.initial = "open"`` from λ = 0 (every face open: fewer iterations when most of
+        Γ opens, but singular if some block is held by contact alone).
         """
         t0 = time.perf_counter()
         F = self.load_vector(t)
@@ -367,8 +370,9 @@ class ContactMechanics:
             x0[:nfree] = initial.u.ravel()[self.free]
             x0[nfree:] = (initial.lam / self.law.beta[:, None]).ravel()
         else:
-            scale = max(np.abs(F).max(initial=0.0), 1e-300)
-            x0[nfree:] = (1e-12 * scale * self.normal / self.law.beta[:, None]).ravel()
+            if self.data.contact.initial == "closed":
+                scale = max(np.abs(F).max(initial=0.0), 1e-300)
+                x0[nfree:] = (1e-12 * scale * self.normal / self.law.beta[:, None]).ravel()
         t1 = time.perf_counter()
 
         def incr(dx, x):
