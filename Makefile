@@ -18,9 +18,12 @@ $(VENV)/.installed-test: pyproject.toml | $(BIN)/python
 	touch $(VENV)/.installed $@
 
 demo: $(VENV)/.installed
-	$(BIN)/polypore mesh frictionless-3d --out results/frictionless-3d --force
-	$(BIN)/polypore mesh dfm-2d --out results/dfm-2d --force
-	@echo "Meshes written under results/ (open the .vtu files in ParaView)."
+	$(BIN)/polypore mesh frictionless-3d --out results/frictionless-3d-mesh --force
+	$(BIN)/polypore mesh dfm-2d --out results/dfm-2d-mesh --force
+	$(BIN)/polypore run six-fractures-static --out results/six-fractures-static --force
+	$(BIN)/polypore run single-crack --out results/single-crack --force
+	$(BIN)/polypore run darcy-dfm-2d --out results/darcy-dfm-2d --force
+	@echo "Results under results/: open solution.pvd in ParaView; PNG plots and summary.json in each folder."
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q -n 2

