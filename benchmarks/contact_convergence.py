@@ -28,8 +28,8 @@ STUDIES = {
     "C2-coulomb-2d-2sided": ("coulomb-2d", ["mesh.size=0.2", "mechanics.bubbles=two-sided"], 5),
     "C2-tresca-2d": ("tresca-2d", ["mesh.size=0.2"], 5),
     "C2-coulomb-2d-voronoi": ("coulomb-2d", ["mesh.generator=voronoi", "mesh.size=0.2"], 4),
-    "C2-coulomb-3d": ("coulomb-3d", ["mesh.size=0.4"], 3),
-    "C2-tresca-3d-2sided": ("tresca-3d", ["mesh.size=0.4", "mechanics.bubbles=two-sided"], 3),
+    "C2-coulomb-3d": ("coulomb-3d", ["mesh.size=0.3"], 3),
+    "C2-tresca-3d-2sided": ("tresca-3d", ["mesh.size=0.3", "mechanics.bubbles=two-sided"], 3),
 }
 
 
