@@ -169,6 +169,12 @@ def main(argv=None) -> int:
     except KeyboardInterrupt:
         print("polypore: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # output piped into a program that stopped reading (e.g. `| head`): not an error of the run
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover
