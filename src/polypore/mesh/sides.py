@@ -48,6 +48,9 @@ class NodeSides:
 def node_sides(mesh: Mesh, fracture_faces: np.ndarray) -> NodeSides:
     """Compute the sides of all nodes once the given faces are cut.
 
+    Sides are numbered node by node and, within a node, by their first (cell, node)
+    incidence, so the numbering is reproducible.
+
     Parameters
     ----------
     fracture_faces : (k,) int
@@ -55,20 +58,25 @@ def node_sides(mesh: Mesh, fracture_faces: np.ndarray) -> NodeSides:
     """
     nn = mesh.n_nodes
     cn = mesh.cell_nodes
-    n = cn.nnz
+    vals = cn.values
+    fn = mesh.face_nodes
     fracture_faces = np.asarray(fracture_faces, dtype=np.int64)
     # Only nodes of fracture faces can have several sides: the graph is built on their
     # (cell, node) incidences alone; every other node has one side holding all its cells.
     on_frac = np.zeros(nn, bool)
-    on_frac[mesh.face_nodes.take(fracture_faces).values] = True
-    inc = np.flatnonzero(on_frac[cn.values])
-    label_all = cn.values.astype(np.int64)
+    on_frac[fn.take(fracture_faces).values] = True
+    nsides = np.ones(nn, dtype=INDEX)
+    inc = np.flatnonzero(on_frac[vals])
+    rank_of_inc = None
     if inc.size:
-        keys = cn.rows_of_entries()[inc].astype(np.int64) * nn + cn.values[inc]
+        keys = cn.rows_of_entries()[inc].astype(np.int64) * nn + vals[inc]
         cut = np.zeros(mesh.n_faces, bool)
         cut[fracture_faces] = True
-        glue = np.flatnonzero((mesh.face_cells[:, 1] >= 0) & ~cut)
-        sub = mesh.face_nodes.take(glue)
+        touches = np.zeros(mesh.n_faces, bool)
+        if fn.nnz:
+            touches = np.logical_or.reduceat(on_frac[fn.values], fn.offsets[:-1].astype(np.int64))
+        glue = np.flatnonzero((mesh.face_cells[:, 1] >= 0) & ~cut & touches)
+        sub = fn.take(glue)
         keep = on_frac[sub.values]
         ent = np.repeat(np.arange(glue.size), sub.counts)[keep]
         nodes = sub.values[keep].astype(np.int64)
@@ -76,17 +84,22 @@ def node_sides(mesh: Mesh, fracture_faces: np.ndarray) -> NodeSides:
         a = np.searchsorted(keys, fc[:, 0] * nn + nodes)
         b = np.searchsorted(keys, fc[:, 1] * nn + nodes)
         graph = sp.coo_array((np.ones(a.size, dtype=np.int8), (a, b)), shape=(inc.size, inc.size)).tocsr()
-        _, local = connected_components(graph, directed=False)
-        label_all[inc] = nn + local
-    _, label = np.unique(label_all, return_inverse=True)
-    label = label.ravel()
-    n_comp = int(label.max()) + 1 if n else 0
-    # number sides node by node (stable, reproducible): order components by (node, first incidence)
-    first = np.full(n_comp, n, dtype=np.int64)
-    np.minimum.at(first, label, np.arange(n))
-    order = np.lexsort((first, cn.values[first]))
-    rank = np.empty(n_comp, dtype=INDEX)
-    rank[order] = np.arange(n_comp, dtype=INDEX)
-    side = rank[label]
-    side_node = cn.values[first[order]]
-    return NodeSides(frozen(side.astype(INDEX)), frozen(side_node.astype(INDEX)))
+        n_loc, local = connected_components(graph, directed=False)
+        first = np.full(n_loc, inc.size, dtype=np.int64)
+        np.minimum.at(first, local, np.arange(inc.size))
+        comp_node = vals[inc[first]]
+        order = np.lexsort((first, comp_node))
+        snode = comp_node[order]
+        head = np.concatenate([[True], snode[1:] != snode[:-1]])
+        start = np.maximum.accumulate(np.where(head, np.arange(n_loc), 0))
+        rank = np.empty(n_loc, dtype=INDEX)
+        rank[order] = np.arange(n_loc) - start
+        nsides[on_frac] = np.bincount(comp_node, minlength=nn)[on_frac]
+        rank_of_inc = rank[local]
+    side_start = np.zeros(nn + 1, dtype=INDEX)
+    np.cumsum(nsides, out=side_start[1:])
+    side = side_start[vals]
+    if rank_of_inc is not None:
+        side[inc] += rank_of_inc
+    side_node = np.repeat(np.arange(nn, dtype=INDEX), nsides)
+    return NodeSides(frozen(side.astype(INDEX)), frozen(side_node))
