@@ -213,3 +213,26 @@ def test_caller_session_kept():
         assert gmsh.option.getNumber("Mesh.MeshSizeMax") == 7.0
     finally:
         gmsh.finalize()
+
+
+def test_tip_refinement_2d_and_its_input_check():
+    from polypore.core.errors import InputError
+    from polypore.mesh import FracturedMesh, FractureSpec
+    from polypore.mesh.generators.simplicial import simplicial_mesh
+
+    crack = [FractureSpec("c", np.array([[-0.5, 0.0], [0.5, 0.0]]))]
+    plain = FracturedMesh.build(simplicial_mesh([-2, -2], [2, 2], crack, 0.5, fracture_size=0.05), crack)
+    tipped = FracturedMesh.build(simplicial_mesh([-2, -2], [2, 2], crack, 0.5, fracture_size=0.05, tip_size=0.005),
+                                 crack)
+
+    def tip_face_length(fm):
+        g = fm.mesh.geometry
+        f = fm.network.faces
+        c = g.face_centroid[f]
+        near = np.linalg.norm(np.abs(c) - [0.5, 0.0], axis=1).argmin()
+        return g.face_area[f][near]
+
+    assert tip_face_length(tipped) < 0.6 * tip_face_length(plain)
+    assert tipped.network.n_faces > plain.network.n_faces
+    with pytest.raises(InputError, match="mesh.tip_size"):
+        simplicial_mesh([0, 0, 0], [1, 1, 1], [], 0.5, tip_size=0.01)

@@ -70,6 +70,7 @@ def test_single_crack_against_analytic_profile():
         _, st, _, err, _ = solve_static(case)
         errs.append(err)
     assert errs[1]["slip_L2_rel"] < errs[0]["slip_L2_rel"] < 0.2
+    assert errs[1]["lambda_n_L2_rel_away_from_tips"] < errs[0]["lambda_n_L2_rel_away_from_tips"] < 0.3
 
 
 def test_convergence_command_writes_table(tmp_path, capsys):

@@ -10,6 +10,7 @@ Schema (all lengths in m)::
     cells = [8, 8, 8]          # cartesian only: cells per direction
     fracture_size = 0.1        # simplicial/agglomerated: size on fractures (default: size)
     grading = 0.4              # simplicial/agglomerated: size growth per unit distance from the fractures
+    tip_size = 0.001           # simplicial, 2D: size at fracture tips (default: no tip refinement)
     rounds = 2                 # agglomerated: rounds of pairwise merging
     perturb = 0.0              # random node perturbation, fraction of the local edge length
     seed = 0
@@ -218,8 +219,9 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
         size = sec.number("size", positive=True)
         fsize = sec.number("fracture_size", size, positive=True)
         grading = sec.number("grading", 0.4, positive=True)
+        tip = sec.number("tip_size", None, positive=True)
         mesh = simplicial_mesh(lower, upper, specs, size, fracture_size=fsize, interfaces=interfaces, seed=seed,
-                               grading=grading)
+                               grading=grading, tip_size=tip)
     elif gen == "voronoi":
         from ..mesh.generators.voronoi import voronoi_mesh
 

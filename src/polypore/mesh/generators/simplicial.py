@@ -28,7 +28,8 @@ GRADING = 0.4
 
 
 def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_size: float | None = None,
-                    interfaces=(), seed: int = 0, grading: float = GRADING) -> Mesh:
+                    interfaces=(), seed: int = 0, grading: float = GRADING,
+                    tip_size: float | None = None) -> Mesh:
     """Triangulate a rectangle / tetrahedralise a box, conforming to fractures and interfaces.
 
     Parameters
@@ -43,6 +44,8 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
     fracture_size : float, m, optional
         Target cell size on the fractures (default ``size``); the size grows
         linearly (slope ``grading``, default ``GRADING``) to ``size`` away from them.
+    tip_size : float, m, optional
+        2D only: target size at the fracture ends inside the box (crack tips), graded the same way.
     interfaces : sequence of FractureSpec
         Further lines/polygons the mesh must conform to (region boundaries), meshed at ``size``.
     seed : int
@@ -71,6 +74,11 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
     fsize = float(size if fracture_size is None else fracture_size)
     if not (np.isfinite(fsize) and fsize > 0):
         raise InputError("mesh.fracture_size", f"must be a positive number, got {fracture_size}")
+    if tip_size is not None:
+        if dim != 2:
+            raise InputError("mesh.tip_size", "tip refinement is available for 2D meshes only")
+        if not (isinstance(tip_size, (int, float)) and tip_size > 0):
+            raise InputError("mesh.tip_size", f"must be a positive number (m), got {tip_size}")
     if not (isinstance(grading, (int, float)) and grading > 0):
         raise InputError("mesh.grading", f"must be a positive number (size growth per unit distance), got {grading}")
     fsize = min(fsize, float(size))
@@ -98,7 +106,7 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
     with gmsh_session(opts) as gmsh:
         try:
             nodes, conn = _generate(gmsh, dim, lower, upper, fractures, interfaces, float(size), fsize,
-                                    float(grading))
+                                    float(grading), tip_size)
         except (InputError, MeshError):
             raise
         except Exception as exc:
@@ -128,7 +136,24 @@ def _add_spec(occ, spec, dim) -> list[tuple[int, int]]:
     return [(2, occ.addPlaneSurface([loop]))]
 
 
-def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, grading=GRADING):
+def _tip_points(gmsh, fractures, lower, upper) -> list[int]:
+    """Tags of the model points at 2D fracture ends strictly inside the box (tips, or T-junctions)."""
+    ends = []
+    for s in fractures:
+        V = np.asarray(s.vertices, float)
+        for P in (V[0], V[-1]):
+            tol = 1e-9 * float(np.max(upper - lower))
+            if np.all(P > lower + tol) and np.all(P < upper - tol):
+                ends.append(P)
+    tags = []
+    for _, tag in gmsh.model.getEntities(0):
+        X = np.asarray(gmsh.model.getValue(0, tag, []))[:2]
+        if any(np.linalg.norm(X - P) <= 1e-9 * float(np.max(upper - lower)) for P in ends):
+            tags.append(tag)
+    return tags
+
+
+def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, grading=GRADING, tip_size=None):
     occ = gmsh.model.occ
     ext = upper - lower
     if dim == 2:
@@ -163,7 +188,21 @@ def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, gradi
         field.setNumber(thr, "SizeMax", size)
         field.setNumber(thr, "DistMin", 0.5 * fsize)
         field.setNumber(thr, "DistMax", 0.5 * fsize + (size - fsize) / grading)
-        field.setAsBackgroundMesh(thr)
+        background = thr
+        tips = _tip_points(gmsh, fractures, lower, upper) if tip_size is not None and dim == 2 else []
+        if tips and tip_size < fsize:
+            # crack tips carry the stress singularity: grade down to tip_size there
+            dtip = field.add("Distance")
+            field.setNumbers(dtip, "PointsList", tips)
+            ttip = field.add("Threshold")
+            field.setNumber(ttip, "InField", dtip)
+            field.setNumber(ttip, "SizeMin", tip_size)
+            field.setNumber(ttip, "SizeMax", size)
+            field.setNumber(ttip, "DistMin", 0.5 * tip_size)
+            field.setNumber(ttip, "DistMax", 0.5 * tip_size + (size - tip_size) / grading)
+            background = field.add("Min")
+            field.setNumbers(background, "FieldsList", [thr, ttip])
+        field.setAsBackgroundMesh(background)
     else:
         const = field.add("MathEval")
         field.setString(const, "F", repr(size))
