@@ -168,3 +168,68 @@ def test_failed_transient_run_leaves_nothing_complete(tmp_path, capsys):
                        "--set", "flow.aperture=1e-4*(1 - t/100) + 1e-9")
     assert code == 2 and "flow.aperture" in err, err
     assert sorted(p.name for p in out.iterdir()) == ["failed.json"]
+
+
+def test_injection_rate_through_a_boundary_part(tmp_path):
+    """`rate` injects a total volume rate: the part's outflow in summary.json is −rate."""
+    import json
+
+    from polypore.cli import main
+
+    case = tmp_path / "inj.toml"
+    case.write_text("""
+name = "inj"
+[mesh]
+generator = "cartesian"
+lower = [0.0, 0.0]
+upper = [2.0, 1.0]
+cells = [8, 4]
+[flow]
+permeability = 1e-12
+viscosity = 1e-3
+[[flow.boundary]]
+name = "xmin"
+rate = 3e-6
+[[flow.boundary]]
+name = "xmax"
+pressure = 1e5
+""")
+    assert main(["run", str(case), "--out", str(tmp_path / "o")]) == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    text = json.dumps(s["fluxes"])
+    assert "xmin" in text
+    out = s["fluxes"]
+    found = []
+
+    def walk(d, path=()):
+        if isinstance(d, dict):
+            for k, v in d.items():
+                walk(v, path + (k,))
+        elif path and path[-1] == "xmin" and isinstance(d, (int, float)):
+            found.append(d)
+
+    walk(out)
+    assert any(abs(v + 3e-6) < 1e-12 for v in found), out
+
+
+def test_steady_case_without_any_pressure_condition_is_rejected(tmp_path, capsys):
+    from polypore.cli import main
+
+    case = tmp_path / "np.toml"
+    case.write_text("""
+name = "np"
+[mesh]
+generator = "cartesian"
+lower = [0.0, 0.0]
+upper = [1.0, 1.0]
+cells = [4, 4]
+[flow]
+permeability = 1e-12
+viscosity = 1e-3
+[[flow.boundary]]
+name = "xmin"
+rate = 1e-6
+""")
+    code = main(["run", str(case), "--out", str(tmp_path / "o")])
+    err = capsys.readouterr().err
+    assert code == 2 and "flow.boundary" in err and "pressure condition" in err and "Traceback" not in err

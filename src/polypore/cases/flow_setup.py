@@ -26,6 +26,8 @@ Schema (SI units; every value may be a number or an expression, see below)::
     name = "xmin"                    # xmin ... zmax or a mesh physical group
     pressure = 1e5                   # Pa: expression of x, y, z, t, or "exact"
     # flux = -1e-9                   # outward flux density (m/s); < 0 injects
+    # rate = 1e-6                    # injected volume rate through the part (m³/s; m²/s per metre
+                                     # in 2D), spread uniformly; an expression of t (a schedule)
 
     [[flow.fracture_boundary]]       # fracture ends on a boundary part where the matrix has no
     name = "xmax"                    # pressure: give them one (or no_flow = true)
@@ -315,10 +317,25 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
         if name in seen:
             raise InputError(b.field("name"), f"boundary {name!r} is given twice; one [[flow.boundary]] per part")
         seen[name] = b
-        has_p, has_q = b.has("pressure"), b.has("flux")
-        if has_p == has_q:
+        has_p, has_q, has_r = b.has("pressure"), b.has("flux"), b.has("rate")
+        if has_p + has_q + has_r != 1:
             raise InputError(b.field("pressure" if not has_p else "flux"),
-                             "give exactly one of pressure (Pa) or flux (outward, m/s) for this boundary part")
+                             "give exactly one of pressure (Pa), flux (outward, m/s) or rate (injected, m³/s; "
+                             "m²/s per metre in 2D) for this boundary part")
+        if has_r:
+            # a total injection rate, spread uniformly over the part: flux density −rate/|part|
+            e = parse(b.raw("rate"), b.field("rate"), params)
+            if e.names - {"t"}:
+                raise InputError(b.field("rate"), f"a rate may depend on t only (a schedule), got {e.text!r}")
+            part = float(mesh.geometry.face_area[mesh.boundary[name]].sum())
+
+            def rate_flux(x, y, z, t=0.0, e=e, part=part):
+                return np.broadcast_to(-np.asarray(e(t=t), float) / part, np.shape(x)).astype(float)
+
+            rate_flux.text = f"-({e.text})/{part:g}"
+            boundary[name] = Flux(float(-e() / part) if e.is_constant else rate_flux)
+            b.done()
+            continue
         key = "pressure" if has_p else "flux"
         v = b.raw(key)
         if isinstance(v, str) and v.strip() == "exact":
@@ -349,6 +366,14 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
             fracture_boundary[name] = Pressure(float(fn()) if fn.is_constant else _point_fn(fn))
         b.done()
     sec.done()
+    has_pressure = any(v == "exact" or isinstance(v, Pressure) for v in boundary.values()) or any(
+        isinstance(v, Pressure) for v in fracture_boundary.values())
+    no_storage = not np.isfinite(M) and cf == 0
+    if not has_pressure and (steady or no_storage):
+        raise InputError("flow.boundary", "no boundary part has a pressure condition, so the pressure is only "
+                         "defined up to a constant" + (" (a steady problem)" if steady else " (no storage: "
+                                                      "biot_modulus is inf)") + "; give `pressure` on at least "
+                         "one [[flow.boundary]] part (parts without a block are no-flow)")
     s = root.section("solver", None)
     backend = s.string("linear", "auto", BACKENDS)
     rtol = s.number("linear_tolerance", 1e-10, positive=True)
