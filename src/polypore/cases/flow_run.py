@@ -220,7 +220,7 @@ def run_flow(case: CaseFile, out: Path) -> dict:
             sol = model.initial_state(setup.initial_pressure, times[0])
             _write_state(stage, 0, model, setup, sol, pvd)
             blocks.append(_csv_block(0, model, sol, s))
-            every, k_out = setup.schedule.output_every, 1
+            k_out = 1
             for n in range(1, times.size):
                 t0 = time.perf_counter()
                 old, sol = sol, model.step(sol, times[n] - times[n - 1])
@@ -229,7 +229,7 @@ def run_flow(case: CaseFile, out: Path) -> dict:
                               "mass_balance": bal["mass_balance"]["residual"]})
                 log.info("step %d/%d: t = %g s, %.2f s, mass balance %.2e m³/s", n, times.size - 1, sol.time,
                          steps[-1]["seconds"], bal["mass_balance"]["residual"])
-                if n % every == 0 or n == times.size - 1:
+                if setup.schedule.is_output(n, float(times[n])):
                     _write_state(stage, k_out, model, setup, sol, pvd)
                     blocks.append(_csv_block(n, model, sol, s))
                     k_out += 1

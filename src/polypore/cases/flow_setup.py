@@ -63,27 +63,12 @@ from ..mesh import FracturedMesh
 from ..models.flow import FlowData, FlowModel, Flux, NO_FLOW, Pressure, permeability_tensor
 from ..models.fracture_geometry import tip_distance
 from ..solvers.linear import BACKENDS, LinearSolver
+from .schedule import TimeSchedule, parse_schedule  # noqa: F401 (re-exported)
 from .casefile import CaseFile, Section
 from .flow_exact import NAMES as EXACT_NAMES, DarcyManufactured, gamma1_mask
 from .mechanics_setup import parameters
 
 FRACTURE_VARS = ("D", "L")
-
-
-@dataclass
-class TimeSchedule:
-    """Implicit-Euler schedule: times t_0 = start < t_1 < ... < t_n = end (s)."""
-
-    start: float
-    end: float
-    step: float
-    output_every: int = 1
-
-    def times(self) -> np.ndarray:
-        n = max(1, int(np.ceil((self.end - self.start) / self.step - 1e-9)))
-        t = self.start + self.step * np.arange(n + 1)
-        t[-1] = self.end
-        return t
 
 
 @dataclass
@@ -241,18 +226,11 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
     steady = sec.boolean("steady", steady_default)
     schedule = None
     if root.has("time"):
-        tsec = root.section("time")
         if steady:
             raise InputError(sec.field("steady"), "is true but the case has a [time] table; remove one of them "
                              "(steady = false for a transient run)")
-        start = tsec.number("start", 0.0)
-        end = tsec.number("end")
-        step = tsec.number("step", positive=True)
-        if not end > start:
-            raise InputError(tsec.field("end"), f"must exceed time.start = {start!r} (s), got {end!r}")
-        schedule = TimeSchedule(start, end, step, tsec.number("output_every", 1, integer=True, positive=True))
-        t0 = start
-        tsec.done()
+        schedule = parse_schedule(root)
+        t0 = schedule.start
     elif not steady:
         raise InputError(sec.field("steady"), "is false but the case has no [time] table (end, step in s)")
     cols = (xf[:, 0], xf[:, 1], xf[:, 2] if d == 3 else np.zeros(net.n_faces))

@@ -1,0 +1,209 @@
+"""Discrete energy balance of one poromechanics step (scheme.md §6, docs/poromechanics.md).
+
+Testing the equilibrium equation with δu = u^n − u^{n−1} and the flow balances with p^n
+(every unknown: cells, faces, traces, fracture faces, edges) and adding, the coupling terms
+cancel (−Σ|K| b p_K div^K δu + Σ|σ| p_f [[δu]]_n against the storage |K| b div^K δu and
+|σ|(d_f^n − d_f^{n−1}) = −|σ|[[δu]]_n), which gives the exact identity
+
+    ΔE + D_friction + D_viscous + D_contact_n + D_numerical + X_τ = W
+
+with E = ½ a(u, u) + ½ Σ|K| p_K²/M + ½ Σ|σ| c_f d_f^{n−1} p_f² (elastic + storage),
+D_friction = Σ|σ| r_σ |Δ[[u]]_τ| (r = F λ_n Coulomb, g Tresca, 0 frictionless),
+D_viscous = Δt [Σ_K Σ_σ F_Kσ (p_K − p_σ) + Σ_σ Σ_e F_σe (p_f − p_e) + Σ_± |σ| Λ_f/η (p_±σ − p_f)²]
+(with C_f, Λ_f at d_f^{n−1}), D_contact_n = Σ|σ| λ_n [[δu]]_n = −Σ|σ| λ_n^n [[u^{n−1}]]_n ≥ 0,
+D_numerical = ½ a(δu, δu) + ½ Σ|K| δp_K²/M + ½ Σ|σ| c_f d_f^{n−1} δp_f² ≥ 0 (implicit Euler),
+X_τ = Σ|σ| λ_τ·Δ[[u]]_τ − D_friction (= 0 at a solution of the contact law) and
+W = ℓ^n·δu (body force, tractions, σ⁰) + R^n·δu (Dirichlet reactions)
+  + Δt [Σ|K| h_m p_K + Σ|σ| h_f p_f − Σ_{∂Ω faces} F_Kσ p_σ − Σ_{∂Ω fracture ends} F_e p_e].
+
+Hence the estimate of the slides, ΔE + D_friction + D_viscous ≤ W. Everything here is
+recomputed from the states with the physical coupling, independently of the Newton residual,
+so that a wrong sign in the model's coupling shows up as a violation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import numpy as np
+
+
+@dataclass
+class EnergyTerms:
+    """Energy terms of one step, in J (J/m in 2D).
+
+    ``elastic`` and ``storage`` are the energies at the end of the step; ``delta_*`` their
+    changes over the step (computed as ½ a(δu, u^n + u^{n−1}) etc. to avoid cancellation);
+    dissipations and works are over the step. ``scale`` bounds the round-off of the balance
+    (sum of the magnitudes of every product entering it).
+    """
+
+    time: float
+    dt: float
+    elastic: float
+    storage: float
+    delta_elastic: float
+    delta_storage: float
+    friction_dissipation: float
+    viscous_dissipation: float
+    viscous_matrix: float
+    viscous_fracture: float
+    viscous_exchange: float
+    contact_normal: float
+    contact_tangential_excess: float
+    numerical_dissipation: float
+    load_work: float
+    reaction_work: float
+    fluid_source_work: float
+    fluid_boundary_work: float
+    scale: float
+
+    @property
+    def source_work(self) -> float:
+        """W: work of loads, Dirichlet reactions, fluid sources and boundary flow."""
+        return self.load_work + self.reaction_work + self.fluid_source_work + self.fluid_boundary_work
+
+    @property
+    def balance(self) -> float:
+        """W − (ΔE + D_friction + D_viscous): ≥ 0 (up to round-off) by the energy estimate."""
+        return self.source_work - (self.delta_elastic + self.delta_storage + self.friction_dissipation
+                                   + self.viscous_dissipation)
+
+    @property
+    def defect(self) -> float:
+        """Defect of the exact identity: balance − (D_contact_n + D_numerical + X_τ) ≈ 0."""
+        return self.balance - (self.contact_normal + self.numerical_dissipation + self.contact_tangential_excess)
+
+    def summary(self) -> dict:
+        """The ``energy`` entry of summary.json (interface.md)."""
+        return {"elastic": self.elastic, "storage": self.storage, "friction_dissipation": self.friction_dissipation,
+                "viscous_dissipation": self.viscous_dissipation, "source_work": self.source_work}
+
+    def as_dict(self) -> dict:
+        return {**asdict(self), "source_work": self.source_work, "balance": self.balance, "defect": self.defect}
+
+
+def state_energy(model, st) -> tuple[float, float]:
+    """(½ a(u, u), ½ Σ|K| p_K²/M) of a state, J (J/m in 2D); fracture storage excluded
+    (its coefficient is lagged per step, see :func:`step_energy`)."""
+    u = st.u.ravel()
+    vol = model.fm.mesh.geometry.cell_volume
+    pK = st.p[model.dofs.n:]
+    return 0.5 * float(u @ (model.mech.A @ u)), 0.5 * float(np.sum(vol * pK * pK) / model.flow.biot_modulus)
+
+
+def step_energy(model, old, new) -> EnergyTerms:
+    """Every term of the discrete energy identity of the step old → new (module docstring).
+
+    Parameters
+    ----------
+    model : Poromechanics
+    old, new : PoroState at t^{n−1} and t^n
+    """
+    mech, asm, dofs = model.mech, model.asm, model.dofs
+    mesh = model.fm.mesh
+    g = mesh.geometry
+    d, nf = model.dim, model.n_ff
+    t, dt = new.time, new.time - old.time
+    A = mech.A
+    u, u0 = new.u.ravel(), old.u.ravel()
+    du = u - u0
+    Au, Adu = A @ u, A @ du
+    # -- elastic: ½a(u,u) − ½a(u0,u0) = ½ a(δu, u + u0), and ½ a(δu, δu) of implicit Euler
+    elastic = 0.5 * float(u @ Au)
+    d_el = 0.5 * float(du @ (Au + A @ u0))
+    num = 0.5 * float(du @ Adu)
+    # -- storage (matrix, and fracture compressibility with the step's coefficient d_f^{n−1})
+    M = model.flow.biot_modulus
+    vol = g.cell_volume
+    pK, pK0 = new.p[dofs.n:], old.p[dofs.n:]
+    storage = 0.5 * float(np.sum(vol * pK * pK) / M)
+    d_st = 0.5 * float(np.sum(vol * (pK - pK0) * (pK + pK0)) / M)
+    num += 0.5 * float(np.sum(vol * (pK - pK0) ** 2) / M)
+    scale = abs(elastic) + 0.5 * abs(float(u0 @ (A @ u0))) + abs(num) + float(np.sum(vol * (pK * pK + pK0 * pK0)) / M)
+    cf = float(model.flow.data.fracture_compressibility)
+    pf, pf0 = new.p[dofs.frac], old.p[dofs.frac]
+    if cf > 0 and nf:
+        w = mech.face_area * old.aperture * cf
+        storage += 0.5 * float(np.sum(w * pf * pf))
+        d_st += 0.5 * float(np.sum(w * (pf - pf0) * (pf + pf0)))
+        num += 0.5 * float(np.sum(w * (pf - pf0) ** 2))
+        scale += float(np.sum(w * (pf * pf + pf0 * pf0)))
+    # -- contact: friction on the slip increment, normal work, tangential excess
+    fric = cn = xt = 0.0
+    if nf:
+        n = mech.normal
+        area = mech.face_area
+        dq = (mech.Jv @ du).reshape(nf, d)
+        dqn = np.einsum("fi,fi->f", dq, n)
+        dqt = dq - dqn[:, None] * n
+        lam = new.lam
+        ln = np.einsum("fi,fi->f", lam, n)
+        lt = lam - ln[:, None] * n
+        law = mech.law
+        r = {"coulomb": law.friction * np.maximum(ln, 0.0), "tresca": law.threshold}.get(law.kind, np.zeros(nf))
+        slip = np.linalg.norm(dqt, axis=1)
+        fric = float(np.sum(area * r * slip))
+        cn = float(np.sum(area * ln * dqn))
+        xt = float(np.sum(area * np.einsum("fi,fi->f", lt, dqt))) - fric
+        scale += float(np.sum(area * (np.abs(ln * dqn) + np.linalg.norm(lt, axis=1) * slip + r * slip)))
+    # -- mechanical work: loads at t^n on δu, Dirichlet reactions (physical coupling −G p)
+    F = mech.load_vector(t)
+    Gp = model.G @ new.p
+    Bl = mech.Bv.T @ new.lam.ravel()
+    R = Au + Bl - Gp - F
+    fixed = mech.fixed
+    load_w = float(F @ du)
+    reac_w = float(R[fixed] @ du[fixed])
+    adu = np.abs(du)
+    scale += float(adu @ (np.abs(Au) + np.abs(Bl) + np.abs(Gp) + 2 * np.abs(F)))
+    # -- flow: viscous dissipation with the lagged conductivities, sources, boundary flow
+    p = new.p
+    ex, fc = model.conductivities(old.aperture) if nf else (np.zeros(0), np.zeros(0))
+    cf_ = mesh.cell_faces
+    rows = cf_.rows_of_entries()
+    Fm = asm.cell_fluxes(pK, p)
+    dpm = pK[rows] - p[dofs.slot]
+    v_m = dt * float(Fm @ dpm)
+    fe = asm.fcells.face_edges
+    pe = p[dofs.edge]
+    Ff = asm.fhfv_unit.scaled(fc).fluxes(pf, pe[fe.values]) if nf else np.zeros(0)
+    dpf = pf[fe.rows_of_entries()] - pe[fe.values] if nf else np.zeros(0)
+    v_f = dt * float(Ff @ dpf)
+    jt = p[dofs.trace] - pf[:, None] if nf else np.zeros((0, 2))
+    v_x = dt * float(np.sum(ex[:, None] * jt * jt))
+    hm, hf = model.flow.sources(t)
+    src_w = dt * float(hm @ pK + hf @ pf)
+    bfaces = mesh.boundary_faces
+    on_b = np.zeros(mesh.n_faces, bool)
+    on_b[bfaces] = True
+    eb = on_b[cf_.values]
+    edge_out = np.bincount(fe.values, weights=Ff, minlength=pe.size) if nf else np.zeros(pe.size)
+    bedges = np.zeros(pe.size, bool)
+    for edges in model.flow._edge_parts.values():
+        bedges[edges] = True
+    bnd_w = -dt * float(Fm[eb] @ p[dofs.slot[eb]] + edge_out[bedges] @ pe[bedges])
+    ap = np.abs(p)
+    scale += dt * float(np.abs(Fm) @ (np.abs(pK[rows]) + ap[dofs.slot]) + np.abs(Ff) @ (np.abs(pf[fe.rows_of_entries()])
+                                                                                      + np.abs(pe[fe.values]))
+                        + np.sum(ex[:, None] * jt * jt) + np.abs(hm) @ np.abs(pK) + np.abs(hf) @ np.abs(pf))
+    return EnergyTerms(t, dt, elastic, storage, d_el, d_st, fric, v_m + v_f + v_x, v_m, v_f, v_x, cn, xt, num,
+                       load_w, reac_w, src_w, bnd_w, scale)
+
+
+def check_energy(terms, rtol: float = 1e-9) -> list[str]:
+    """Violations of ΔE + D_friction + D_viscous ≤ W (+ rtol × scale), one message per step.
+
+    Parameters
+    ----------
+    terms : iterable of EnergyTerms
+    rtol : round-off tolerance relative to each step's ``scale``
+    """
+    out = []
+    for k, e in enumerate(terms):
+        if not e.balance >= -rtol * e.scale:
+            out.append(f"step {k} (t = {e.time:g} s): ΔE + friction + viscous exceeds the work by "
+                       f"{-e.balance:.3e} J (tolerance {rtol * e.scale:.1e}; ΔE = {e.delta_elastic + e.delta_storage:.3e},"
+                       f" friction {e.friction_dissipation:.3e}, viscous {e.viscous_dissipation:.3e}, "
+                       f"work {e.source_work:.3e})")
+    return out

@@ -1,0 +1,451 @@
+"""Mixed-dimensional poromechanics with frictional contact, monolithic semi-smooth Newton
+(scheme.md §6).
+
+One implicit-Euler step from (u^{n−1}, λ^{n−1}, p^{n−1}) solves, for the free displacement
+dofs, the multipliers λ_σ and every flow unknown except Dirichlet pressures,
+
+    A u + Σ_σ |σ| λ_σ·[[v]]_σ − G p = ℓ^n(v)                                 (equilibrium, §3)
+    (|σ|/β)(λ_σ − P(λ_σ + β ([[u]]_n n, Δ[[u]]_τ))) = 0                      (contact, §4)
+    Δt A_f(d_f^{n−1}) p − Δt r^n + G^T (u^n − u^{n−1}) = 0                   (flow, §5–6)
+
+with the coupling G (n_dofs, n_flow): G[:, K] = |K| b div^K(·) on cell pressures and
+G[:, σ] = −|σ| [[·]]_σ·n⁺ on fracture pressures, so that −G p is the Biot term
+−Σ_K |K| b p_K div^K v + Σ_σ |σ| p_f,σ [[v]]_σ·n⁺ and G^T δu the storage change
+|K| b div^K δu of the cells and −|σ| [[δu]]_n = |σ| (d_f^n − d_f^{n−1}) of the fracture faces.
+A_f is :meth:`FlowAssembler.full_matrix` (cells included, rows "storage + outflow" in m³/s)
+with the conductivities C_f, Λ_f at d_f^{n−1}; r^n holds sources, Neumann fluxes and
+the old storage.
+
+**Friction (choice, from the slides):** λ = −T⁺ with T⁺ = σ^T(u, p_m)⁺ n⁺ + p_f n⁺ is the
+contact (effective) traction: λ_n = −σ^T_nn − p_f is the effective normal stress, and the
+Coulomb law |λ_τ| ≤ F λ_n acts on it, on the slip increment Δ[[u]]_τ = [[u^n]]_τ − [[u^{n−1}]]_τ.
+
+**Scaling.** Newton works on x = [u_free (m), λ̃ = λ/β (m), p̃ = p/s (m)] with the flow rows
+multiplied by −s (s in Pa/m, see :meth:`Poromechanics.pressure_scale`): every block of the
+Jacobian then has the size of the elastic block (~ (2μ + λ_L) h^{d−2}) and the Jacobian is
+symmetric whenever every fracture face sticks (saddle point: −s² Δt A_f in the flow block).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..assembly.pattern import Pattern
+from ..core.errors import InputError
+from ..mesh import FracturedMesh
+from ..solvers.linear import LinearSolver
+from ..solvers.newton import Linearisation, NewtonOptions, semismooth_newton
+from .contact import OPEN, SLIP, STICK, linearise_contact
+from .flow import FlowData, FlowModel, FlowSolution, _positive
+from .mechanics import ContactMechanics, MechanicsData
+
+log = logging.getLogger("polypore")
+
+
+@dataclass
+class PoroState:
+    """A state of the coupled model at one time (all SI).
+
+    Attributes
+    ----------
+    time : float, s
+    u : (n_slots, d) nodal-side and bubble displacements, m
+    lam : (n_ff, d) contact multipliers λ = −T⁺, Pa
+    p : (n_flow,) every flow unknown in :class:`FlowDofs` order followed by the cell
+        pressures (index ``dofs.n + K``), Pa
+    aperture : (n_ff,) d_f = d_f^c − [[u]]_n, m
+    state : (n_ff,) int8 contact state (OPEN / STICK / SLIP)
+    """
+
+    time: float
+    u: np.ndarray
+    lam: np.ndarray
+    p: np.ndarray
+    aperture: np.ndarray
+    state: np.ndarray
+
+
+@dataclass
+class StepInfo:
+    """Newton report of one step: iterations, final scaled residual, open/stick/slip counts,
+    per-iteration history, seconds, and the energy terms (:class:`EnergyTerms`) if computed."""
+
+    iterations: int
+    residual: float
+    open: int
+    stick: int
+    slip: int
+    history: list = field(default_factory=list)
+    seconds: dict = field(default_factory=dict)
+    energy: object = None
+
+
+class Poromechanics:
+    """Coupled contact mechanics + mixed-dimensional HFV Darcy flow (scheme.md §6).
+
+    Parameters
+    ----------
+    fm : FracturedMesh
+    mech_data : MechanicsData
+        Elasticity, Dirichlet/traction conditions (functions of t), contact law. Its
+        ``matrix_pressure`` and ``fracture_pressure`` must be None: the pressures are unknowns.
+    flow_data : FlowData
+        Flow data; ``aperture`` is the closed aperture d_f^c (evaluated at t = 0) and
+        ``biot_coefficient`` the b of both equations.
+    flow_boundary, fracture_boundary, cell_source, fracture_source, alpha, fracture_alpha :
+        as in :class:`FlowModel` (time-dependent values are evaluated at t^n).
+    solver : LinearSolver, optional
+        Default sparse direct (pardiso if installed, else SuperLU).
+    newton : NewtonOptions, optional
+    """
+
+    def __init__(self, fm: FracturedMesh, mech_data: MechanicsData, flow_data: FlowData,
+                 flow_boundary: Mapping | None = None, *, fracture_boundary: Mapping | None = None,
+                 cell_source=0.0, fracture_source=0.0, alpha=None, fracture_alpha=None,
+                 solver: LinearSolver | None = None, newton: NewtonOptions | None = None):
+        t0 = time.perf_counter()
+        if mech_data.matrix_pressure is not None or mech_data.fracture_pressure is not None:
+            raise InputError("mechanics.pressure", "the coupled model computes p_m and p_f: leave "
+                             "matrix_pressure and fracture_pressure unset")
+        self.fm = fm
+        self.solver = solver or LinearSolver("auto")
+        self.newton = newton or NewtonOptions(label="poromechanics Newton")
+        self.mech = ContactMechanics(fm, mech_data, self.solver, self.newton)
+        self.flow = FlowModel(fm, flow_data, flow_boundary, fracture_boundary=fracture_boundary,
+                              cell_source=cell_source, fracture_source=fracture_source, alpha=alpha,
+                              fracture_alpha=fracture_alpha, solver=self.solver)
+        self.dim = fm.mesh.dim
+        self.n_ff = fm.network.n_faces
+        self.biot = float(flow_data.biot_coefficient)
+        self.closed_aperture = self.flow.aperture0              # d_f^c (n_ff,), m
+        self.asm = self.flow.assembler
+        self.dofs = self.asm.dofs
+        self.n_flow = self.dofs.n + fm.mesh.n_cells
+        self._coupling_sign = 1.0   # −1 only in tests: a deliberately wrong Biot sign the energy check must catch
+        self._setup_coupling()
+        self._setup_flow_dofs()
+        self._setup_pattern()
+        self.seconds_setup = time.perf_counter() - t0
+        log.info("poromechanics: %d free displacement dofs, %d multipliers, %d free pressures; set up in %.2f s",
+                 self.mech.free.size, self.n_ff * self.dim, self.flow_free.size, self.seconds_setup)
+
+    # ---- set-up -------------------------------------------------------------------------
+    def _setup_coupling(self):
+        """G (n_dofs, n_flow): |K| b div^K on cells, −|σ| [[·]]·n⁺ on fracture pressures."""
+        mech, d, g = self.mech, self.dim, self.fm.mesh.geometry
+        nc = self.fm.mesh.n_cells
+        rows, cols, vals = [], [], []
+        for j in range(d):
+            Dj = mech.ops.D[j].tocoo()
+            rows.append(Dj.col.astype(np.int64) * d + j)          # div^K v = Σ_j ∂_j v_j
+            cols.append(self.dofs.n + Dj.row.astype(np.int64))
+            vals.append(Dj.data * (self.biot * g.cell_volume)[Dj.row])
+        if self.n_ff:
+            J = mech.jump_scalar.tocoo()
+            r = (J.col.astype(np.int64)[:, None] * d + np.arange(d)).ravel()
+            c = np.repeat(self.dofs.frac[J.row], d)
+            v = (-(J.data * mech.face_area[J.row])[:, None] * mech.normal[J.row]).ravel()
+            rows += [r]
+            cols += [c]
+            vals += [v]
+        self.G = sp.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                              shape=(mech.n_dofs, self.n_flow))
+        self.GT = self.G.T.tocsr()
+        self._nc = nc
+
+    def _setup_flow_dofs(self):
+        ids, _, _ = self.flow._dirichlet(0.0)        # the Dirichlet set does not depend on t
+        fixed = np.zeros(self.n_flow, bool)
+        fixed[ids] = True
+        self.flow_fixed = np.flatnonzero(fixed)
+        self.flow_free = np.flatnonzero(~fixed)
+        self.flow_free_index = np.full(self.n_flow, -1, np.int64)
+        self.flow_free_index[self.flow_free] = np.arange(self.flow_free.size)
+        net = self.fm.network
+        ne = net.edge_nodes.shape[0]
+        # pattern of the uncondensed flow matrix: fill once to fix its CSR structure
+        Af = self.asm.full_matrix(np.ones(self._nc), np.ones(self.n_ff), np.ones(self.n_ff), np.zeros(self.n_ff))
+        r = np.repeat(np.arange(self.n_flow), np.diff(Af.indptr))
+        c = Af.indices.astype(np.int64)
+        self._af_keep = (self.flow_free_index[r] >= 0) & (self.flow_free_index[c] >= 0)
+        self._af_rc = (self.flow_free_index[r[self._af_keep]], self.flow_free_index[c[self._af_keep]])
+        self._n_edges = ne
+
+    def _setup_pattern(self):
+        """Every (row, col) contribution of the step Jacobian, restricted to unknowns, built once."""
+        mech, d, nf = self.mech, self.dim, self.n_ff
+        nfree = mech.free.size
+        nl = nf * d
+        npf = self.flow_free.size
+        beta = mech.law.beta
+        A = mech.A[mech.free][:, mech.free].tocoo()
+        Bt = mech.Bv[:, mech.free].T.tocoo()
+        J = mech.jump_scalar.tocoo()
+        rows = J.row.astype(np.int64)[:, None, None] * d + np.arange(d)[None, :, None]
+        colsd = J.col.astype(np.int64)[:, None, None] * d + np.arange(d)[None, None, :]
+        rows, colsd = np.broadcast_arrays(rows, colsd)
+        fcol = mech.free_index[colsd]
+        keep = fcol >= 0
+        self._cu = (J.row, J.data, keep)
+        lr = np.broadcast_to(np.arange(nf)[:, None, None] * d + np.arange(d)[None, :, None], (nf, d, d))
+        lc = np.broadcast_to(np.arange(nf)[:, None, None] * d + np.arange(d)[None, None, :], (nf, d, d))
+        Gc = self.G[mech.free][:, self.flow_free].tocoo()          # u rows × p columns
+        self._g_vals = Gc.data
+        po = nfree + nl                                              # offset of the pressures
+        ar, ac = self._af_rc
+        allr = np.concatenate([A.row, Bt.row, nfree + rows[keep], nfree + lr.ravel(), Gc.row, po + Gc.col,
+                               po + ar])
+        allc = np.concatenate([A.col, nfree + Bt.col, fcol[keep], nfree + lc.ravel(), po + Gc.col, Gc.row,
+                               po + ac])
+        n = po + npf
+        self.pattern = Pattern.build(allr, allc, (n, n))
+        self._a_vals = A.data
+        self._bt_vals = Bt.data * beta[Bt.col // d] if Bt.nnz else Bt.data
+        self.n_unknowns = n
+
+    # ---- scaling and step coefficients ----------------------------------------------------
+    def pressure_scale(self, dt: float) -> float:
+        """s in Pa/m with p = s p̃: balances the Schur complement of the pressure block.
+
+        Per cell the pressure block is ~ h^d (b²/(2μ+λ_L) + 1/M + Δt k/(η h²)) in
+        m^d/Pa once the displacement is eliminated; s² times it should match the elastic
+        block (2μ + λ_L) h^{d−2}. Mean values over the mesh are used (one scalar).
+        """
+        mech, g = self.mech, self.fm.mesh.geometry
+        Em = float(np.mean(2 * mech.mu + mech.lam))
+        h = float(np.mean(g.cell_volume ** (1.0 / self.dim)))
+        k = float(np.mean(np.trace(self.flow.permeability, axis1=1, axis2=2))) / self.dim / self.flow.viscosity
+        c = self.biot ** 2 + Em / self.flow.biot_modulus + Em * dt * k / h ** 2
+        return Em / (h * np.sqrt(max(c, 1e-300)))
+
+    def conductivities(self, aperture: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(|σ| Λ_f/η, C_f/η) at the given aperture (n_ff,) each, m³/(Pa·s)."""
+        data = self.flow.data
+        area = self.mech.face_area
+        lam = np.broadcast_to(np.asarray(data.normal_transmissivity_law(aperture, self.flow.normal_permeability),
+                                         float), aperture.shape)
+        cond = np.broadcast_to(np.asarray(data.conductivity_law(aperture), float), aperture.shape)
+        if not (np.all(lam > 0) and np.all(np.isfinite(lam))):
+            raise InputError("flow.normal_transmissivity_law", "must return positive finite values (m)")
+        if not (np.all(cond >= 0) and np.all(np.isfinite(cond))):
+            raise InputError("flow.conductivity_law", "must return non-negative finite values (m³)")
+        return area * lam / self.flow.viscosity, cond / self.flow.viscosity
+
+    def flow_step_system(self, old: PoroState, dt: float, t: float):
+        """Δt-scaled flow matrix and right-hand side of the step (scheme.md §5–6).
+
+        Returns
+        -------
+        A_dt : csr (n_flow, n_flow), Δt A_f(d_f^{n−1}) with storage |K|/M and |σ| d_f^{n−1} c_f, m³/Pa
+        r_dt : (n_flow,) Δt × (sources + old storage − Neumann outflow), m³ (coupling excluded)
+        p_dir : (n_flow,) Dirichlet pressures at t on fixed dofs, 0 elsewhere, Pa
+        """
+        g = self.fm.mesh.geometry
+        area = self.mech.face_area
+        s_cell = g.cell_volume / (self.flow.biot_modulus * dt)
+        s_frac = area * old.aperture * float(self.flow.data.fracture_compressibility) / dt
+        ex, fc = self.conductivities(old.aperture)
+        A_dt = self.asm.full_matrix(s_cell, ex, fc, s_frac) * dt
+        ids, vals, qflux = self.flow._dirichlet(t)
+        hm, hf = self.flow.sources(t)
+        d = self.dofs
+        r = np.zeros(self.n_flow)
+        r[d.n:] = hm + s_cell * old.p[d.n:]
+        r[d.frac] = hf + s_frac * old.p[d.frac]
+        ok = d.face >= 0
+        r[d.face[ok]] -= qflux[ok]
+        p_dir = np.zeros(self.n_flow)
+        p_dir[ids] = vals
+        return A_dt, r * dt, p_dir
+
+    # ---- states ----------------------------------------------------------------------------
+    def jumps(self, u: np.ndarray) -> np.ndarray:
+        """(n_ff, d) mean jumps [[u]]_σ, m."""
+        return self.mech.jump_scalar @ u
+
+    def aperture_of(self, u: np.ndarray) -> np.ndarray:
+        """(n_ff,) d_f = d_f^c − [[u]]_n (scheme.md §1), m."""
+        if not self.n_ff:
+            return np.zeros(0)
+        return self.closed_aperture - np.einsum("fi,fi->f", self.jumps(u), self.mech.normal)
+
+    def initial_state(self, p0, u0=None, t0: float = 0.0, verbose: bool = False) -> PoroState:
+        """State at t0 with every pressure from ``p0`` (number or f(x, y, z, t)).
+
+        ``u0=None`` computes (u, λ) in equilibrium with p0 and the loads at t0 (static
+        contact problem, friction on [[u]]_τ); otherwise ``u0`` (n_slots, d) or a field
+        f(X, t) (interpolated, scheme.md §3) is used with λ = 0.
+        """
+        sol = self.flow.initial_state(p0, t0)
+        p = self.pressure_vector(sol)
+        mech = self.mech
+        d = self.dim
+        if u0 is None:
+            F = mech.load_vector(t0) + self.G @ p
+            udir = mech.dirichlet_vector(t0)
+            nfree = mech.free.size
+            x0 = np.zeros(nfree + self.n_ff * d)
+            if mech.data.contact.initial == "closed":
+                scale = max(np.abs(F).max(initial=0.0), 1e-300)
+                x0[nfree:] = (1e-12 * scale * mech.normal / mech.law.beta[:, None]).ravel()
+            res = semismooth_newton(lambda x: mech.linearise(x, F, udir, None), x0, self.solver,
+                                    lambda dx, x: float(np.linalg.norm(dx) / max(np.linalg.norm(x + dx), 1e-300)),
+                                    NewtonOptions(**{**self.newton.__dict__, "label": "initial equilibrium"}), verbose)
+            u, lam = mech._split(res.x, udir)
+            state = mech.linearise(res.x, F, udir, None).active_set
+            u = u.reshape(-1, d)
+        else:
+            u = np.asarray(mech.interpolate(u0, t0) if callable(u0) else u0, float).reshape(-1, d)
+            lam = np.zeros((self.n_ff, d))
+            state = np.full(self.n_ff, OPEN, np.int8)
+        return PoroState(float(t0), u, lam, p, self.aperture_of(u), np.asarray(state, np.int8))
+
+    def pressure_vector(self, sol: FlowSolution) -> np.ndarray:
+        """(n_flow,) the unknown vector of a FlowSolution (FlowDofs order, then cells)."""
+        d = self.dofs
+        p = np.zeros(self.n_flow)
+        ok = d.face >= 0
+        p[d.face[ok]] = sol.face[ok]
+        p[d.trace] = sol.trace
+        p[d.frac] = sol.fracture
+        p[d.edge] = sol.edge
+        p[d.n:] = sol.cell
+        return p
+
+    # ---- Newton --------------------------------------------------------------------------------
+    def _split(self, x, udir, p_dir, s):
+        mech, d = self.mech, self.dim
+        nfree = mech.free.size
+        nl = self.n_ff * d
+        u = udir.copy()
+        u[mech.free] = x[:nfree]
+        lam = x[nfree:nfree + nl].reshape(self.n_ff, d) * mech.law.beta[:, None]
+        p = p_dir.copy()
+        p[self.flow_free] = s * x[nfree + nl:]
+        return u, lam, p
+
+    def _linearise(self, x, ctx) -> Linearisation:
+        mech, d, nf = self.mech, self.dim, self.n_ff
+        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, af_vals = ctx
+        u, lam, p = self._split(x, udir, p_dir, s)
+        q = (mech.Jv @ u).reshape(nf, d)
+        C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, q, q - q_old, mech.normal, mech.face_area)
+        cs = self._coupling_sign
+        Gp = self.G @ p
+        Ru = mech.A @ u + mech.Bv.T @ lam.ravel() - cs * Gp - F
+        Gdu = self.GT @ (u - u_old)
+        Ap = A_dt @ p
+        Rf = Ap - r_dt + Gdu
+        b = mech.law.beta
+        jrow, jval, keep = self._cu
+        cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
+        vals = np.concatenate([self._a_vals, self._bt_vals, cu, (dC_dlam * (b * b)[:, None, None]).ravel(),
+                               -cs * s * self._g_vals, -s * self._g_vals, -s * s * af_vals])
+        Jac = self.pattern.fill(vals)
+        free, ff = mech.free, self.flow_free
+        su = max(np.linalg.norm(F), np.linalg.norm(mech.A @ u), np.linalg.norm(mech.Bv.T @ lam.ravel()),
+                 np.linalg.norm(Gp), 1e-300)
+        sf = max(np.linalg.norm(Ap[ff]), np.linalg.norm(r_dt[ff]), np.linalg.norm(Gdu[ff]), 1e-300)
+        norms = {"equilibrium": float(np.linalg.norm(Ru[free]) / su), "flow": float(np.linalg.norm(Rf[ff]) / sf)}
+        if nf:
+            sc = max(np.linalg.norm(mech.face_area[:, None] * q), np.linalg.norm((mech.face_area / b)[:, None] * lam),
+                     1e-300)
+            norms["contact"] = float(np.linalg.norm(C) / sc)
+        counts = {"open": int(np.sum(state == OPEN)), "stick": int(np.sum(state == STICK)),
+                  "slip": int(np.sum(state == SLIP))} if nf else {}
+        res = np.concatenate([Ru[free], (C * b[:, None]).ravel(), -s * Rf[ff]])
+        return Linearisation(res, Jac, norms, counts, state)
+
+    def step(self, old: PoroState, dt: float, t_new: float | None = None, *, energy: bool = True,
+             verbose: bool = False) -> tuple[PoroState, StepInfo]:
+        """One implicit-Euler step from ``old`` to t_new (default old.time + dt), scheme.md §6.
+
+        Loads and Dirichlet data at t_new; C_f, Λ_f and the fracture storage coefficient at
+        d_f^{n−1} = ``old.aperture``. Returns the new state and the Newton report (with the
+        energy terms of the step when ``energy``). Raises RunError if Newton fails.
+        """
+        t0 = time.perf_counter()
+        dt = _positive(dt, "time.dt")
+        t = old.time + dt if t_new is None else float(t_new)
+        mech, d = self.mech, self.dim
+        F = mech.load_vector(t)
+        udir = mech.dirichlet_vector(t)
+        A_dt, r_dt, p_dir = self.flow_step_system(old, dt, t)
+        s = self.pressure_scale(dt)
+        u_old = old.u.ravel()
+        q_old = (mech.Jv @ u_old).reshape(self.n_ff, d)
+        af_vals = A_dt.data[self._af_keep]
+        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, af_vals)
+        nfree, nl = mech.free.size, self.n_ff * d
+        x0 = np.concatenate([u_old[mech.free], (old.lam / mech.law.beta[:, None]).ravel(), old.p[self.flow_free] / s])
+        t1 = time.perf_counter()
+
+        def incr(dx, x):
+            out = 0.0
+            for a, b in ((0, nfree), (nfree, nfree + nl), (nfree + nl, len(x))):
+                if b > a:
+                    out = max(out, np.linalg.norm(dx[a:b]) / max(np.linalg.norm(x[a:b] + dx[a:b]), 1e-300))
+            return float(out)
+
+        res = semismooth_newton(lambda x: self._linearise(x, ctx), x0, self.solver, incr, self.newton, verbose)
+        u, lam, p = self._split(res.x, udir, p_dir, s)
+        final = self._linearise(res.x, ctx)
+        u = u.reshape(-1, d)
+        new = PoroState(t, u, lam, p, self.aperture_of(u), np.asarray(final.active_set, np.int8))
+        c = final.counts
+        info = StepInfo(res.iterations, res.residual, c.get("open", 0), c.get("stick", 0), c.get("slip", 0),
+                        res.history, {"setup": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear})
+        if energy:
+            from .energy import step_energy
+
+            info.energy = step_energy(self, old, new)
+        info.seconds["total"] = time.perf_counter() - t0
+        return new, info
+
+    # ---- post-processing -------------------------------------------------------------------------
+    def flow_solution(self, st: PoroState) -> FlowSolution:
+        """The pressures and fluxes of a state as a :class:`FlowSolution` (for outputs).
+
+        Conductivities at the state's own aperture (a post-processing choice: the step used
+        those of the previous state).
+        """
+        asm, mesh, net, d = self.asm, self.fm.mesh, self.fm.network, self.dofs
+        p = st.p
+        ex, fc = self.conductivities(st.aperture) if self.n_ff else (np.zeros(0), np.zeros(0))
+        F = asm.cell_fluxes(p[d.n:], p)
+        Ff = asm.fhfv_unit.scaled(fc).fluxes(p[d.frac], p[d.edge][asm.fcells.face_edges.values])
+        face = np.full(mesh.n_faces, np.nan)
+        ok = d.face >= 0
+        face[ok] = p[d.face[ok]]
+        face_out = np.zeros(mesh.n_faces)
+        np.add.at(face_out, mesh.cell_faces.values, F)
+        edge_out = np.bincount(asm.fcells.face_edges.values, weights=Ff, minlength=net.edge_nodes.shape[0])
+        bflux, fbflux = {}, {}
+        for name, faces in mesh.boundary.items():
+            parts = self.flow._edge_parts
+            fb = float(edge_out[parts[name]].sum()) if name in parts else 0.0
+            fbflux[name] = fb
+            bflux[name] = float(face_out[faces].sum()) + fb
+        return FlowSolution(st.time, p[d.n:].copy(), face, p[d.trace].copy(), p[d.frac].copy(), p[d.edge].copy(),
+                            st.aperture.copy(), F, ex[:, None] * (p[d.trace] - p[d.frac][:, None]), Ff, bflux, fbflux)
+
+    def fracture_quantities(self, st: PoroState) -> dict:
+        """Per fracture face (scheme.md §7): jump (n_ff, d), jump_n, jump_t = |[[u]]_τ|, lambda_n,
+        lambda_t = |λ_τ|, state, aperture (m), p_f (Pa)."""
+        n = self.mech.normal
+        q = self.jumps(st.u)
+        qn = np.einsum("fi,fi->f", q, n)
+        ln = np.einsum("fi,fi->f", st.lam, n)
+        return {"jump": q, "jump_n": qn, "jump_t": np.linalg.norm(q - qn[:, None] * n, axis=1),
+                "lambda_n": ln, "lambda_t": np.linalg.norm(st.lam - ln[:, None] * n, axis=1),
+                "state": st.state, "aperture": st.aperture, "p_f": st.p[self.dofs.frac]}
+
+    def cell_pressure(self, st: PoroState) -> np.ndarray:
+        """(n_cells,) p_K, Pa."""
+        return st.p[self.dofs.n:]

@@ -1,0 +1,43 @@
+"""Time schedules: validation, output times, step cutting."""
+
+import numpy as np
+import pytest
+
+from polypore.cases.casefile import Section
+from polypore.cases.schedule import TimeSchedule, march, parse_schedule
+from polypore.core.errors import InputError, RunError
+
+
+def test_times_hit_output_times_and_end():
+    s = TimeSchedule(0.0, 100.0, 30.0, output_times=(45.0, 100.0))
+    t = s.times()
+    assert t[0] == 0 and t[-1] == 100 and 45.0 in t and np.all(np.diff(t) > 0)
+    assert s.is_output(2, 45.0) and not s.is_output(1, 30.0) and s.is_output(len(t) - 1, 100.0)
+
+
+@pytest.mark.parametrize("table,field,msg", [
+    ({"end": 0.0, "step": 1.0}, "time.end", "does not advance"),
+    ({"end": 10.0, "step": 0.0}, "time.step", "does not advance"),
+    ({"end": 10.0, "step": 1.0, "output_times": [5.0, 12.0]}, "time.output_times", "outside the run"),
+    ({"end": 10.0, "step": 1.0, "typo": 1}, "time.typo", "unknown key"),
+])
+def test_bad_schedules(table, field, msg):
+    with pytest.raises(InputError) as exc:
+        parse_schedule(Section({"time": table}, ""))
+    assert exc.value.field == field and msg in str(exc.value)
+
+
+def test_march_cuts_failing_steps_then_gives_up():
+    s = TimeSchedule(0.0, 4.0, 2.0, max_cuts=2)
+    calls = []
+
+    def step(state, t0, t1):
+        calls.append((t0, t1))
+        if t1 - t0 > 1.0:          # steps longer than 1 s "do not converge"
+            raise RunError("Newton did not converge")
+        return state + (t1 - t0), {"newton_iterations": 3}
+
+    state, recs = march(s, 0.0, step)
+    assert state == pytest.approx(4.0) and [r.cuts for r in recs] == [1, 1]
+    with pytest.raises(RunError, match="failed after 1 cut"):
+        march(TimeSchedule(0.0, 4.0, 4.0, max_cuts=1), 0.0, step)
