@@ -9,7 +9,8 @@ cancel (−Σ|K| b p_K div^K δu + Σ|σ| p_f [[δu]]_n against the storage |K| 
 
 with E = ½ a(u, u) + ½ Σ|K| p_K²/M + ½ Σ|σ| c_f d_f^{n−1} p_f² (elastic + storage),
 D_friction = Σ|σ| r_σ |Δ[[u]]_τ| (r = F λ_n Coulomb, g Tresca, 0 frictionless),
-D_viscous = Δt [Σ_K Σ_σ F_Kσ (p_K − p_σ) + Σ_σ Σ_e F_σe (p_f − p_e) + Σ_± |σ| Λ_f/η (p_±σ − p_f)²]
+D_viscous = Δt [Σ_K Σ_σ F_Kσ (p_K − p_σ) + Σ_σ Σ_e F_σe (p_f − p_e)
+                + Σ_± |σ| Λ_f/η (p_±σ − p_f)²]
 (with C_f, Λ_f at d_f^{n−1}), D_contact_n = Σ|σ| λ_n [[δu]]_n = −Σ|σ| λ_n^n [[u^{n−1}]]_n ≥ 0,
 D_numerical = ½ a(δu, δu) + ½ Σ|K| δp_K²/M + ½ Σ|σ| c_f d_f^{n−1} δp_f² ≥ 0 (implicit Euler),
 X_τ = Σ|σ| λ_τ·Δ[[u]]_τ − D_friction (= 0 at a solution of the contact law) and
@@ -203,7 +204,8 @@ def check_energy(terms, rtol: float = 1e-9) -> list[str]:
     for k, e in enumerate(terms):
         if not e.balance >= -rtol * e.scale:
             out.append(f"step {k} (t = {e.time:g} s): ΔE + friction + viscous exceeds the work by "
-                       f"{-e.balance:.3e} J (tolerance {rtol * e.scale:.1e}; ΔE = {e.delta_elastic + e.delta_storage:.3e},"
+                       f"{-e.balance:.3e} J (tolerance {rtol * e.scale:.1e}; "
+                       f"ΔE = {e.delta_elastic + e.delta_storage:.3e},"
                        f" friction {e.friction_dissipation:.3e}, viscous {e.viscous_dissipation:.3e}, "
                        f"work {e.source_work:.3e})")
     return out

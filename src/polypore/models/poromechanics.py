@@ -20,10 +20,11 @@ the old storage.
 contact (effective) traction: λ_n = −σ^T_nn − p_f is the effective normal stress, and the
 Coulomb law |λ_τ| ≤ F λ_n acts on it, on the slip increment Δ[[u]]_τ = [[u^n]]_τ − [[u^{n−1}]]_τ.
 
-**Scaling.** Newton works on x = [u_free (m), λ̃ = λ/β (m), p̃ = p/s (m)] with the flow rows
-multiplied by −s (s in Pa/m, see :meth:`Poromechanics.pressure_scale`): every block of the
-Jacobian then has the size of the elastic block (~ (2μ + λ_L) h^{d−2}) and the Jacobian is
-symmetric whenever every fracture face sticks (saddle point: −s² Δt A_f in the flow block).
+**Scaling.** Newton works on x = [u_free (m), λ̃ = λ/β (m), p̃ = p/s (m)] with each flow row
+multiplied by −s (s per flow unknown in Pa/m, see :meth:`Poromechanics.pressure_scale`):
+every block of the Jacobian then has the size of the elastic block (~ (2μ + λ_L) h^{d−2})
+and the Jacobian is symmetric whenever no fracture face slips (saddle point:
+−S Δt A_f S in the flow block, S = diag(s)).
 """
 
 from __future__ import annotations
@@ -42,6 +43,7 @@ from ..mesh import FracturedMesh
 from ..solvers.linear import LinearSolver
 from ..solvers.newton import Linearisation, NewtonOptions, semismooth_newton
 from .contact import OPEN, SLIP, STICK, linearise_contact
+from .energy import step_energy
 from .flow import FlowData, FlowModel, FlowSolution, _positive
 from .mechanics import ContactMechanics, MechanicsData
 
@@ -61,6 +63,9 @@ class PoroState:
         pressures (index ``dofs.n + K``), Pa
     aperture : (n_ff,) d_f = d_f^c − [[u]]_n, m
     state : (n_ff,) int8 contact state (OPEN / STICK / SLIP)
+    flux_aperture : (n_ff,) aperture at which the step that produced this state evaluated
+        C_f and Λ_f (d_f^{n−1}; the state's own aperture for an initial state), m: the fluxes
+        built with it are the conservative ones
     """
 
     time: float
@@ -69,6 +74,11 @@ class PoroState:
     p: np.ndarray
     aperture: np.ndarray
     state: np.ndarray
+    flux_aperture: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.flux_aperture is None:
+            self.flux_aperture = self.aperture
 
 
 @dataclass
@@ -167,15 +177,12 @@ class Poromechanics:
         self.flow_free = np.flatnonzero(~fixed)
         self.flow_free_index = np.full(self.n_flow, -1, np.int64)
         self.flow_free_index[self.flow_free] = np.arange(self.flow_free.size)
-        net = self.fm.network
-        ne = net.edge_nodes.shape[0]
         # pattern of the uncondensed flow matrix: fill once to fix its CSR structure
         Af = self.asm.full_matrix(np.ones(self._nc), np.ones(self.n_ff), np.ones(self.n_ff), np.zeros(self.n_ff))
         r = np.repeat(np.arange(self.n_flow), np.diff(Af.indptr))
         c = Af.indices.astype(np.int64)
         self._af_keep = (self.flow_free_index[r] >= 0) & (self.flow_free_index[c] >= 0)
         self._af_rc = (self.flow_free_index[r[self._af_keep]], self.flow_free_index[c[self._af_keep]])
-        self._n_edges = ne
 
     def _setup_pattern(self):
         """Every (row, col) contribution of the step Jacobian, restricted to unknowns, built once."""
@@ -196,7 +203,7 @@ class Poromechanics:
         lr = np.broadcast_to(np.arange(nf)[:, None, None] * d + np.arange(d)[None, :, None], (nf, d, d))
         lc = np.broadcast_to(np.arange(nf)[:, None, None] * d + np.arange(d)[None, None, :], (nf, d, d))
         Gc = self.G[mech.free][:, self.flow_free].tocoo()          # u rows × p columns
-        self._g_vals = Gc.data
+        self._g_vals, self._g_cols = Gc.data, Gc.col
         po = nfree + nl                                              # offset of the pressures
         ar, ac = self._af_rc
         allr = np.concatenate([A.row, Bt.row, nfree + rows[keep], nfree + lr.ravel(), Gc.row, po + Gc.col,
@@ -210,19 +217,27 @@ class Poromechanics:
         self.n_unknowns = n
 
     # ---- scaling and step coefficients ----------------------------------------------------
-    def pressure_scale(self, dt: float) -> float:
-        """s in Pa/m with p = s p̃: balances the Schur complement of the pressure block.
+    def pressure_scale(self, dt: float) -> np.ndarray:
+        """(n_flow,) s in Pa/m with p = s p̃ per flow unknown: a symmetric diagonal scaling.
 
-        Per cell the pressure block is ~ h^d (b²/(2μ+λ_L) + 1/M + Δt k/(η h²)) in
-        m^d/Pa once the displacement is eliminated; s² times it should match the elastic
-        block (2μ + λ_L) h^{d−2}. Mean values over the mesh are used (one scalar).
+        Cell and fracture pressures: per cell the pressure block is ~ h^d (b²/(2μ+λ_L) + 1/M
+        + Δt k/(η h²)) in m^d/Pa once the displacement is eliminated, and s² times it should
+        match the elastic block (2μ + λ_L) h^{d−2}. Face, trace and edge pressures only carry
+        the Δt-scaled HFV fluxes (~ Δt k/η h^{d−2}): their own s makes that block match too,
+        which keeps a direct solver with pivot perturbation (pardiso) accurate when Δt → 0.
+        Mean values over the mesh (scalars per kind of unknown).
         """
         mech, g = self.mech, self.fm.mesh.geometry
         Em = float(np.mean(2 * mech.mu + mech.lam))
         h = float(np.mean(g.cell_volume ** (1.0 / self.dim)))
         k = float(np.mean(np.trace(self.flow.permeability, axis1=1, axis2=2))) / self.dim / self.flow.viscosity
-        c = self.biot ** 2 + Em / self.flow.biot_modulus + Em * dt * k / h ** 2
-        return Em / (h * np.sqrt(max(c, 1e-300)))
+        diff = Em * dt * k / h ** 2
+        s_cell = Em / (h * np.sqrt(max(self.biot ** 2 + Em / self.flow.biot_modulus + diff, 1e-300)))
+        s_face = Em / (h * np.sqrt(max(diff, 1e-300)))
+        s = np.full(self.n_flow, s_face)
+        s[self.dofs.n:] = s_cell
+        s[self.dofs.frac] = s_cell
+        return s
 
     def conductivities(self, aperture: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(|σ| Λ_f/η, C_f/η) at the given aperture (n_ff,) each, m³/(Pa·s)."""
@@ -327,12 +342,12 @@ class Poromechanics:
         u[mech.free] = x[:nfree]
         lam = x[nfree:nfree + nl].reshape(self.n_ff, d) * mech.law.beta[:, None]
         p = p_dir.copy()
-        p[self.flow_free] = s * x[nfree + nl:]
+        p[self.flow_free] = s[self.flow_free] * x[nfree + nl:]
         return u, lam, p
 
     def _linearise(self, x, ctx) -> Linearisation:
         mech, d, nf = self.mech, self.dim, self.n_ff
-        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, af_vals = ctx
+        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, g_vals, af_vals = ctx
         u, lam, p = self._split(x, udir, p_dir, s)
         q = (mech.Jv @ u).reshape(nf, d)
         C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, q, q - q_old, mech.normal, mech.face_area)
@@ -346,7 +361,7 @@ class Poromechanics:
         jrow, jval, keep = self._cu
         cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
         vals = np.concatenate([self._a_vals, self._bt_vals, cu, (dC_dlam * (b * b)[:, None, None]).ravel(),
-                               -cs * s * self._g_vals, -s * self._g_vals, -s * s * af_vals])
+                               -cs * g_vals, -g_vals, -af_vals])
         Jac = self.pattern.fill(vals)
         free, ff = mech.free, self.flow_free
         su = max(np.linalg.norm(F), np.linalg.norm(mech.A @ u), np.linalg.norm(mech.Bv.T @ lam.ravel()),
@@ -359,8 +374,27 @@ class Poromechanics:
             norms["contact"] = float(np.linalg.norm(C) / sc)
         counts = {"open": int(np.sum(state == OPEN)), "stick": int(np.sum(state == STICK)),
                   "slip": int(np.sum(state == SLIP))} if nf else {}
-        res = np.concatenate([Ru[free], (C * b[:, None]).ravel(), -s * Rf[ff]])
+        res = np.concatenate([Ru[free], (C * b[:, None]).ravel(), -s[ff] * Rf[ff]])
         return Linearisation(res, Jac, norms, counts, state)
+
+    def step_context(self, old: PoroState, dt: float, t: float):
+        """Everything fixed during the Newton loop of the step old → t, and the first iterate x0
+        (the old state with the new Dirichlet data). ``self._linearise(x, ctx)`` is the
+        residual and Jacobian at x."""
+        mech, d = self.mech, self.dim
+        F = mech.load_vector(t)
+        udir = mech.dirichlet_vector(t)
+        A_dt, r_dt, p_dir = self.flow_step_system(old, dt, t)
+        s = self.pressure_scale(dt)
+        u_old = old.u.ravel()
+        q_old = (mech.Jv @ u_old).reshape(self.n_ff, d)
+        sf = s[self.flow_free]
+        ar, ac = self._af_rc
+        g_vals = self._g_vals * sf[self._g_cols]                       # columns scaled by s
+        af_vals = A_dt.data[self._af_keep] * sf[ar] * sf[ac]           # rows and columns scaled by s
+        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, g_vals, af_vals)
+        x0 = np.concatenate([u_old[mech.free], (old.lam / mech.law.beta[:, None]).ravel(), old.p[self.flow_free] / sf])
+        return ctx, x0
 
     def step(self, old: PoroState, dt: float, t_new: float | None = None, *, energy: bool = True,
              verbose: bool = False) -> tuple[PoroState, StepInfo]:
@@ -374,16 +408,9 @@ class Poromechanics:
         dt = _positive(dt, "time.dt")
         t = old.time + dt if t_new is None else float(t_new)
         mech, d = self.mech, self.dim
-        F = mech.load_vector(t)
-        udir = mech.dirichlet_vector(t)
-        A_dt, r_dt, p_dir = self.flow_step_system(old, dt, t)
-        s = self.pressure_scale(dt)
-        u_old = old.u.ravel()
-        q_old = (mech.Jv @ u_old).reshape(self.n_ff, d)
-        af_vals = A_dt.data[self._af_keep]
-        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, af_vals)
+        ctx, x0 = self.step_context(old, dt, t)
+        udir, p_dir, s = ctx[1], ctx[4], ctx[7]
         nfree, nl = mech.free.size, self.n_ff * d
-        x0 = np.concatenate([u_old[mech.free], (old.lam / mech.law.beta[:, None]).ravel(), old.p[self.flow_free] / s])
         t1 = time.perf_counter()
 
         def incr(dx, x):
@@ -397,13 +424,11 @@ class Poromechanics:
         u, lam, p = self._split(res.x, udir, p_dir, s)
         final = self._linearise(res.x, ctx)
         u = u.reshape(-1, d)
-        new = PoroState(t, u, lam, p, self.aperture_of(u), np.asarray(final.active_set, np.int8))
+        new = PoroState(t, u, lam, p, self.aperture_of(u), np.asarray(final.active_set, np.int8), old.aperture)
         c = final.counts
         info = StepInfo(res.iterations, res.residual, c.get("open", 0), c.get("stick", 0), c.get("slip", 0),
                         res.history, {"setup": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear})
         if energy:
-            from .energy import step_energy
-
             info.energy = step_energy(self, old, new)
         info.seconds["total"] = time.perf_counter() - t0
         return new, info
@@ -412,12 +437,12 @@ class Poromechanics:
     def flow_solution(self, st: PoroState) -> FlowSolution:
         """The pressures and fluxes of a state as a :class:`FlowSolution` (for outputs).
 
-        Conductivities at the state's own aperture (a post-processing choice: the step used
-        those of the previous state).
+        Conductivities at ``st.flux_aperture`` (those of the step that computed the state), so
+        that the fluxes balance the step's storage changes.
         """
         asm, mesh, net, d = self.asm, self.fm.mesh, self.fm.network, self.dofs
         p = st.p
-        ex, fc = self.conductivities(st.aperture) if self.n_ff else (np.zeros(0), np.zeros(0))
+        ex, fc = self.conductivities(st.flux_aperture) if self.n_ff else (np.zeros(0), np.zeros(0))
         F = asm.cell_fluxes(p[d.n:], p)
         Ff = asm.fhfv_unit.scaled(fc).fluxes(p[d.frac], p[d.edge][asm.fcells.face_edges.values])
         face = np.full(mesh.n_faces, np.nan)
@@ -449,3 +474,8 @@ class Poromechanics:
     def cell_pressure(self, st: PoroState) -> np.ndarray:
         """(n_cells,) p_K, Pa."""
         return st.p[self.dofs.n:]
+
+    def stresses(self, st: PoroState) -> tuple[np.ndarray, np.ndarray]:
+        """(effective σ^K(u), total σ^K(u) − b p_K I), each (n_cells, d, d) in Pa (σ⁰ excluded)."""
+        eff = self.mech.stress(st)
+        return eff, eff - (self.biot * self.cell_pressure(st))[:, None, None] * np.eye(self.dim)

@@ -1,0 +1,265 @@
+"""Coupled poromechanics (scheme.md §6): Terzaghi consolidation, the discrete energy identity
+and estimate (with Coulomb slip, 2D and 3D, one- and two-sided bubbles), detection of a wrong
+coupling sign, fracture injection with partial opening and mass conservation, and the
+Newton Jacobian against finite differences."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from polypore.mesh import FracturedMesh, FractureSpec
+from polypore.mesh.generators.cartesian import cartesian_mesh, grid_coordinates
+from polypore.models.contact import OPEN, SLIP
+from polypore.models.energy import check_energy
+from polypore.models.flow import FlowData, Pressure
+from polypore.models.mechanics import ContactSpec, DisplacementBC, MechanicsData, TractionBC
+from polypore.models.poromechanics import Poromechanics
+
+ZERO = lambda X, t: 0.0 * X  # noqa: E731
+
+
+def _lame(E, nu):
+    return E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))
+
+
+# ---- Terzaghi -----------------------------------------------------------------------------
+TZ = dict(E=1e8, nu=0.25, b=1.0, M=1e9, k=1e-13, eta=1e-3, load=1e5, H=1.0)
+
+
+def _terzaghi_model(ny):
+    """Column (0, 0.1) × (0, H), one cell wide: load on top (for t > 0), drained top, rollers on
+    the sides, fixed impervious bottom."""
+    mu, lam = _lame(TZ["E"], TZ["nu"])
+    mesh = cartesian_mesh([np.linspace(0, 0.1, 2), np.linspace(0, TZ["H"], ny + 1)])
+    fm = FracturedMesh.build(mesh, [])
+    nc = mesh.n_cells
+    load = TZ["load"]
+    md = MechanicsData(mu=np.full(nc, mu), lam=np.full(nc, lam),
+                       displacement=[DisplacementBC("ymin", (0, 1), ZERO), DisplacementBC("xmin", (0,), ZERO),
+                                     DisplacementBC("xmax", (0,), ZERO)],
+                       traction=[TractionBC("ymax", lambda X, t: np.tile([0.0, -load * (t > 0)], (len(X), 1)))])
+    fd = FlowData(permeability=TZ["k"], viscosity=TZ["eta"], biot_modulus=TZ["M"], biot_coefficient=TZ["b"])
+    return Poromechanics(fm, md, fd, {"ymax": Pressure(0.0)})
+
+
+def _terzaghi_constants():
+    mu, lam = _lame(TZ["E"], TZ["nu"])
+    Kd = lam + 2 * mu                                  # oedometric (drained) modulus
+    b, M = TZ["b"], TZ["M"]
+    cv = TZ["k"] / TZ["eta"] / (b * b / Kd + 1 / M)    # consolidation coefficient, m²/s
+    p0 = b * M * TZ["load"] / (Kd + b * b * M)         # undrained pressure at t = 0⁺
+    return Kd, cv, p0
+
+
+def terzaghi_pressure(z, t, n_terms=400):
+    """Series solution p(z, t), drained top z = H, impervious bottom z = 0."""
+    _, cv, p0 = _terzaghi_constants()
+    H = TZ["H"]
+    m = np.arange(n_terms)[:, None]
+    a = (2 * m + 1) * np.pi / (2 * H)
+    return (4 * p0 / ((2 * m + 1) * np.pi) * np.sin(a * (H - z)) * np.exp(-a * a * cv * t)).sum(0)
+
+
+def _run_terzaghi(ny, n_steps, sign=1.0):
+    """Undrained first step (Δt = 1e-6 T_c), then n_steps to 0.5 T_c; errors at 0.05, 0.2, 0.5 T_c."""
+    Kd, cv, p0 = _terzaghi_constants()
+    Tc = TZ["H"] ** 2 / cv
+    P = _terzaghi_model(ny)
+    P._coupling_sign = sign
+    st = P.initial_state(0.0)
+    st, info = P.step(st, 1e-6 * Tc)
+    undrained = st
+    energies = [info.energy]
+    z = P.fm.mesh.geometry.cell_centroid[:, 1]
+    errs = {}
+    dt = 0.5 * Tc / n_steps
+    marks = {round(f * n_steps / 0.5): f for f in (0.05, 0.2, 0.5)}
+    for n in range(1, n_steps + 1):
+        st, info = P.step(st, dt)
+        energies.append(info.energy)
+        if n in marks:
+            errs[marks[n]] = np.abs(P.cell_pressure(st) - terzaghi_pressure(z, st.time)).max() / p0
+    return P, undrained, errs, energies
+
+
+def test_terzaghi_consolidation():
+    Kd, cv, p0 = _terzaghi_constants()
+    out = {}
+    for ny, n_steps in ((10, 50), (20, 200)):           # Δt ∝ h²: implicit Euler and HFV both O(h²)
+        P, und, errs, energies = _run_terzaghi(ny, n_steps)
+        out[ny] = errs
+        # undrained response: uniform p = b M σ/(K_d + b² M) and settlement σ H/(K_d + b² M)
+        z = P.fm.mesh.geometry.cell_centroid[:, 1]
+        rel = np.abs(P.cell_pressure(und) / p0 - 1)
+        assert rel.max() < 1e-3 and rel[z < TZ["H"] - 2.0 / ny].max() < 1e-6   # drained only in the top cell
+        top = np.isclose(P.fm.mesh.nodes[P.fm.sides.side_node][:, 1], TZ["H"])
+        settle = TZ["load"] * TZ["H"] / (Kd + TZ["b"] ** 2 * TZ["M"])
+        assert np.allclose(und.u[: P.fm.sides.n_sides][top, 1], -settle, rtol=1e-3)
+        assert not check_energy(energies)
+        assert max(abs(e.defect) / e.scale for e in energies) < 1e-12
+    # measured: ny=10 {0.05: 3.4e-2, 0.2: 6.9e-3, 0.5: 6.9e-3}; ny=20 {8.6e-3, 1.7e-3, 1.7e-3}
+    for f in (0.05, 0.2, 0.5):
+        assert out[20][f] < 1e-2
+        assert out[10][f] / out[20][f] > 3.5
+    assert max(out[20].values()) < 1e-2
+
+
+def test_energy_check_catches_a_wrong_coupling_sign():
+    """No fracture: the identity ΔE + D_visc + D_num = W closes to round-off; with the sign of the
+    Biot term flipped in the equilibrium equation, the estimate is violated at every step."""
+    *_, good = _run_terzaghi(10, 10)
+    assert not check_energy(good)
+    assert max(abs(e.defect) / e.scale for e in good) < 1e-12
+    # no contact, no friction: every dissipation is viscous or the implicit-Euler ½a(δu,δu) + ½|δp|²/M
+    assert all(e.friction_dissipation == 0 and e.contact_normal == 0 for e in good)
+    *_, bad = _run_terzaghi(10, 10, sign=-1.0)
+    violations = check_energy(bad)
+    assert len(violations) == len(bad), violations
+    assert min(abs(e.defect) / e.scale for e in bad) > 1e-2
+
+
+# ---- fractured cases ----------------------------------------------------------------------------
+def _box(dim, n):
+    return cartesian_mesh([grid_coordinates(0, 1, n, [0.25, 0.5, 0.75])] * dim)
+
+
+def _centre_fracture(dim):
+    if dim == 2:
+        return [FractureSpec("F", np.array([[0.25, 0.5], [0.75, 0.5]]))]
+    return [FractureSpec("F", np.array([[0.25, 0.25, 0.5], [0.75, 0.25, 0.5], [0.75, 0.75, 0.5], [0.25, 0.75, 0.5]]))]
+
+
+def shear_case(dim, n, two_sided=False, T=50.0):
+    """Fracture with tips in the unit square/cube; bottom fixed, top displaced by
+    min(t/T, 1)(shear, −compression) so that the fracture slips while loading, then sticks;
+    p = 1e5 Pa on xmin, initial pressure 1e5 Pa, F = 0.5."""
+    mu, lam = _lame(1e10, 0.2)
+    fm = FracturedMesh.build(_box(dim, n), _centre_fracture(dim))
+    nc = fm.mesh.n_cells
+    top, bot = ("ymax", "ymin") if dim == 2 else ("zmax", "zmin")
+    utop = np.array([2e-4, -1e-4]) if dim == 2 else np.array([2e-4, 1e-4, -1e-4])
+    md = MechanicsData(mu=np.full(nc, mu), lam=np.full(nc, lam),
+                       displacement=[DisplacementBC(bot, tuple(range(dim)), ZERO),
+                                     DisplacementBC(top, tuple(range(dim)),
+                                                    lambda X, t: np.tile(min(t / T, 1.0) * utop, (len(X), 1)))],
+                       contact=ContactSpec("coulomb", 0.5), two_sided=two_sided)
+    fd = FlowData(permeability=1e-15, viscosity=1e-3, biot_modulus=1e10, biot_coefficient=0.5, aperture=1e-4,
+                  normal_permeability=1e-15)
+    return Poromechanics(fm, md, fd, {"xmin": Pressure(1e5)})
+
+
+@pytest.mark.parametrize("dim,n,two_sided", [(2, 16, False), (2, 16, True), (3, 8, False)])
+def test_energy_estimate_with_coulomb_slip(dim, n, two_sided):
+    P = shear_case(dim, n, two_sided)
+    st = P.initial_state(1e5)
+    terms, slipping = [], []
+    for _ in range(8):
+        st, info = P.step(st, 10.0)
+        terms.append(info.energy)
+        slipping.append(info.slip)
+    assert max(slipping) == P.n_ff and min(slipping) == 0      # slips while loading, sticks afterwards
+    assert max(e.friction_dissipation for e in terms) > 0.01 * max(e.viscous_dissipation for e in terms)
+    assert all(e.viscous_dissipation > 0 for e in terms)
+    assert not check_energy(terms)
+    # the exact identity (with the implicit-Euler and normal-contact terms) closes to round-off;
+    # |λ_τ|·|Δ[[u]]_τ| equals the friction dissipation (the slip law holds exactly)
+    for e in terms:
+        assert abs(e.defect) < 1e-11 * e.scale, e.as_dict()
+        assert abs(e.contact_tangential_excess) < 1e-11 * e.scale
+        assert e.contact_normal > -1e-12 * e.scale and e.numerical_dissipation > 0
+
+
+def test_jacobian_matches_finite_differences():
+    """The pattern-filled Jacobian equals the derivative of the residual (away from kinks)."""
+    P = shear_case(2, 8)
+    st = P.initial_state(1e5)
+    st, _ = P.step(st, 10.0)
+    ctx, x0 = P.step_context(st, 10.0, 20.0)
+    x = x0 * (1 + 1e-3 * np.random.default_rng(0).standard_normal(x0.size))
+    lin = P._linearise(x, ctx)
+    assert np.any(lin.active_set == SLIP)
+    v = np.random.default_rng(1).standard_normal(x.size) * np.abs(x).mean()
+    eps = 1e-6
+    fd = (P._linearise(x + eps * v, ctx).residual - P._linearise(x - eps * v, ctx).residual) / (2 * eps)
+    Jv = lin.jacobian @ v
+    assert np.linalg.norm(fd - Jv) < 1e-6 * np.linalg.norm(Jv)
+
+
+def injection_case(dim, n, q=1e-6):
+    """Fracture with tips under a confining traction growing with x, fluid injected into the
+    fracture (h_f = q m/s on its faces), drained top, low-permeability matrix."""
+    mu, lam = _lame(1e10, 0.2)
+    fm = FracturedMesh.build(_box(dim, n), _centre_fracture(dim))
+    nc = fm.mesh.n_cells
+    top, bot = ("ymax", "ymin") if dim == 2 else ("zmax", "zmin")
+    lateral = [b for b in fm.mesh.boundary if b not in (top, bot)]
+    tr = np.zeros(dim)
+    tr[-1] = -1e6
+    md = MechanicsData(mu=np.full(nc, mu), lam=np.full(nc, lam),
+                       displacement=[DisplacementBC(bot, tuple(range(dim)), ZERO)]
+                       + [DisplacementBC(b, ("xyz".index(b[0]),), ZERO) for b in lateral],
+                       traction=[TractionBC(top, lambda X, t: np.outer(1 + 3 * (X[:, 0] - 0.25), tr))],
+                       contact=ContactSpec("coulomb", 0.5))
+    fd = FlowData(permeability=1e-18, viscosity=1e-3, biot_modulus=1e10, biot_coefficient=0.5, aperture=1e-4,
+                  normal_permeability=1e-18, fracture_compressibility=1e-9)
+    return Poromechanics(fm, md, fd, {top: Pressure(0.0)}, fracture_source=q)
+
+
+@pytest.mark.parametrize("dim,n,q", [(2, 16, 1e-6), (3, 8, 5e-7)])
+def test_injection_opens_the_fracture_and_conserves_mass(dim, n, q):
+    P = injection_case(dim, n, q)
+    mesh, net = P.fm.mesh, P.fm.network
+    g = mesh.geometry
+    vol = g.cell_volume
+    area = g.face_area[net.faces]
+    x = g.face_centroid[net.faces][:, 0]
+    st = P.initial_state(0.0)
+    assert np.all(st.state != OPEN)
+    n_open, pf_max = [0], [0.0]
+    terms = []
+    for _ in range(6):
+        old = st
+        st, info = P.step(st, 0.5)
+        terms.append(info.energy)
+        fq = P.fracture_quantities(st)
+        is_open = st.state == OPEN
+        # opens where the confining stress is lowest (small x), the open zone grows, p_f rises
+        assert is_open.any() and not is_open.all()
+        assert x[is_open].max() <= x[~is_open].min()
+        assert is_open.sum() >= n_open[-1] and fq["p_f"].max() > pf_max[-1]
+        n_open.append(int(is_open.sum()))
+        pf_max.append(float(fq["p_f"].max()))
+        # open: λ_n = 0 (the effective normal stress vanishes) and [[u]]_n < 0; closed: [[u]]_n = 0
+        assert np.all(np.abs(fq["lambda_n"][is_open]) <= 1e-12 * fq["lambda_n"].max())
+        assert np.all(fq["jump_n"][is_open] < 0)
+        assert np.all(fq["lambda_n"][~is_open] > 0)
+        assert np.abs(fq["jump_n"][~is_open]).max() < 1e-12 * np.abs(fq["jump_n"]).max()
+        assert np.allclose(st.aperture, 1e-4 - fq["jump_n"], rtol=0, atol=1e-18)
+        # mass: per cell, per fracture face, and globally (aperture change included)
+        dt = st.time - old.time
+        du = st.u - old.u
+        div = sum(P.mech.ops.D[j] @ du[:, j] for j in range(dim))
+        sol = P.flow_solution(st)
+        M, b = P.flow.biot_modulus, P.flow.data.biot_coefficient
+        dpK = P.cell_pressure(st) - P.cell_pressure(old)
+        cell_out = np.bincount(mesh.cell_faces.rows_of_entries(), weights=sol.cell_flux, minlength=mesh.n_cells)
+        res_cell = vol * (b * div + dpK / M) + dt * cell_out
+        scale = dt * np.abs(sol.cell_flux).max()
+        assert np.abs(res_cell).max() < 1e-9 * scale
+        fe = P.asm.fcells.face_edges
+        frac_out = np.bincount(fe.rows_of_entries(), weights=sol.fracture_flux, minlength=net.n_faces)
+        cf = P.flow.data.fracture_compressibility
+        dpf = sol.fracture - old.p[P.dofs.frac]
+        res_frac = (area * (st.aperture - old.aperture) + area * cf * old.aperture * dpf
+                    + dt * (frac_out - sol.exchange.sum(1)) - dt * area * q)
+        assert np.abs(res_frac).max() < 1e-9 * dt * area.sum() * q
+        injected = dt * area.sum() * q
+        stored = (np.sum(vol * (b * div + dpK / M)) + np.sum(area * (st.aperture - old.aperture))
+                  + np.sum(area * cf * old.aperture * dpf))
+        out = dt * sum(sol.boundary_flux.values())
+        assert abs(injected - stored - out) < 1e-9 * injected
+        assert np.sum(area * (st.aperture - old.aperture)) > 0.1 * injected     # most goes into opening
+    assert n_open[-1] > n_open[1]
+    assert not check_energy(terms)
+    assert max(abs(e.defect) / e.scale for e in terms) < 1e-11
