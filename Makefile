@@ -23,6 +23,7 @@ demo: $(VENV)/.installed
 	$(BIN)/polypore run six-fractures-static --out results/six-fractures-static --force
 	$(BIN)/polypore run single-crack --out results/single-crack --force
 	$(BIN)/polypore run darcy-dfm-2d --out results/darcy-dfm-2d --force
+	$(BIN)/polypore run dfm-2d --out results/dfm-2d --force
 	@echo "Results under results/: open solution.pvd in ParaView; PNG plots and summary.json in each folder."
 
 test: $(VENV)/.installed-test

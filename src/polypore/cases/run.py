@@ -58,7 +58,7 @@ def unknowns(problem) -> int:
     return int(problem.free.size + problem.n_ff * problem.dim)
 
 
-MODELS = ("mechanics", "flow")
+MODELS = ("mechanics", "flow", "poromechanics")
 
 
 def case_model(case: CaseFile) -> str:
@@ -69,7 +69,8 @@ def case_model(case: CaseFile) -> str:
     model = case.data.get("model")
     if model is None:
         has_mech = any(k in case.data for k in ("mechanics", "material", "materials", "contact"))
-        model = "flow" if "flow" in case.data and not has_mech else "mechanics"
+        has_flow = "flow" in case.data
+        model = "poromechanics" if has_flow and has_mech else ("flow" if has_flow else "mechanics")
     if model not in MODELS:
         raise InputError("model", f"unknown model {model!r}; allowed: {', '.join(MODELS)}")
     return model
@@ -77,10 +78,15 @@ def case_model(case: CaseFile) -> str:
 
 def run_case(case: CaseFile, out: Path) -> dict:
     """``polypore run``: dispatch on the case's model; returns summary.json's content."""
-    if case_model(case) == "flow":
+    model = case_model(case)
+    if model == "flow":
         from .flow_run import run_flow
 
         return run_flow(case, out)
+    if model == "poromechanics":
+        from .poro_run import run_poromechanics
+
+        return run_poromechanics(case, out)
     return run_static(case, out)
 
 

@@ -110,3 +110,72 @@ def convergence_plot(path, h, errors: dict, rates: dict, title=""):
     if title:
         ax.set_title(title, fontsize=10)
     save(fig, path)
+
+
+def _cell_polygons(mesh):
+    from .vtu import bulk_cells
+
+    c = bulk_cells(mesh)
+    conn, off = c["connectivity"], c["offsets"]
+    starts = np.concatenate([[0], off[:-1]])
+    P = c["points"][:, :2]
+    return [P[conn[a:b]] for a, b in zip(starts, off)]
+
+
+def poro_plots(stage, case_name, mesh, net, s, snapshots, series, t_end):
+    """The C4 figures: overpressure maps, contact states along the fractures at T/4 and T,
+    mean aperture and mean fracture pressure per fracture against time (2D)."""
+    plt = _plt()
+    from matplotlib.collections import PolyCollection
+
+    polys = _cell_polygons(mesh)
+    seg = mesh.face_nodes.values.reshape(-1, 2)[net.faces]
+    # overpressure maps
+    k = len(snapshots)
+    cols = min(3, k)
+    rows = int(np.ceil(k / cols))
+    lo, hi = mesh.bounding_box
+    aspect = (hi[1] - lo[1]) / max(hi[0] - lo[0], 1e-300)
+    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 5.2 * cols * aspect / cols * 1.15 * rows + 0.6),
+                             squeeze=False)
+    vmax = max(float(np.abs(sn["overpressure"]).max()) for sn in snapshots) or 1.0
+    for ax, sn in zip(axes.ravel(), snapshots):
+        pc = PolyCollection(polys, array=sn["overpressure"], cmap="RdBu_r", edgecolors="none")
+        pc.set_clim(-vmax, vmax)
+        ax.add_collection(pc)
+        for P in mesh.nodes[seg]:
+            ax.plot(P[:, 0], P[:, 1], "k-", lw=1.0)
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_aspect("equal")
+        ax.set_title(f"t = {sn['time']:g} s", fontsize=9)
+        ax.tick_params(labelsize=7)
+        fig.colorbar(pc, ax=ax, shrink=0.8, label="p − p⁰ (Pa)")
+    for ax in axes.ravel()[k:]:
+        ax.axis("off")
+    fig.suptitle(f"{case_name}: matrix overpressure", fontsize=10)
+    save(fig, stage / "overpressure.png")
+    # contact states along the fractures at T/4 and T
+    times = np.array([sn["time"] for sn in snapshots])
+    picks = sorted({int(np.argmin(np.abs(times - t_end / 4))), len(snapshots) - 1})
+    for j in picks:
+        sn = snapshots[j]
+        fields = {"λ_n (Pa)": sn["lambda_n"], "|[[u]]_τ| (m)": sn["jump_t"], "aperture (m)": sn["aperture"]}
+        fracture_profiles(stage / f"contact_t{sn['time']:g}.png", net.names, net.fracture, s, fields,
+                          [("open", "stick", "slip")[v] for v in sn["state"]],
+                          title=f"{case_name}: contact along the fractures at t = {sn['time']:g} s")
+    # mean aperture and mean fracture pressure per fracture against time
+    t = np.array([r["time"] for r in series])
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    for name in net.names:
+        a1.plot(t, [r[name][0] for r in series], label=name)
+        a2.plot(t, [r[name][1] for r in series], label=name)
+    a1.set_xlabel("t (s)")
+    a1.set_ylabel("mean aperture (m)")
+    a2.set_xlabel("t (s)")
+    a2.set_ylabel("mean fracture pressure (Pa)")
+    for a in (a1, a2):
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8)
+    fig.suptitle(f"{case_name}: fracture means against time", fontsize=10)
+    save(fig, stage / "fracture_means.png")

@@ -1,0 +1,186 @@
+"""``polypore run`` for poromechanics cases (scheme.md §6): the time loop, outputs, energy audit.
+
+The case has the mechanics tables of :mod:`.mechanics_setup` (``[material]``, ``[mechanics]``,
+``[contact]``), the flow tables of :mod:`.flow_setup` (``[flow]``) and ``[time]``
+(:mod:`.schedule`); ``[mechanics] biot`` is the Biot coefficient b of both equations.
+Files: case.toml, summary.json (steps with Newton counts, states and energy terms),
+fractures.csv, bulk/fractures VTU series + solution.pvd and, in 2D, overpressure maps,
+contact states along the fractures and mean aperture / fracture pressure against time.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from .. import __version__
+from ..core.errors import InputError, RunError
+from ..io.atomic import atomic_write_text
+from ..io.plots import poro_plots
+from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
+from ..io.vtu import write_bulk_vtu, write_fracture_vtu, write_pvd
+from ..models.contact import STATE_NAMES
+from ..models.energy import check_energy
+from ..models.fracture_geometry import arc_length
+from ..models.poromechanics import Poromechanics
+from .casefile import CaseFile
+from .flow_setup import flow_setup
+from .mechanics_setup import mechanics_setup
+from .meshing import build_fractured_mesh
+from .run import peak_memory_mb
+from .schedule import march
+
+log = logging.getLogger("polypore")
+
+MECH_SOLVER_KEYS = ("linear", "tolerance", "increment_tolerance", "max_iterations")
+FLOW_SOLVER_KEYS = ("linear", "linear_tolerance")
+
+
+def _sub_case(case: CaseFile, drop: tuple, solver_keys: tuple) -> CaseFile:
+    """The case without the tables of the other half (each half rejects keys it does not know)."""
+    data = copy.deepcopy(case.data)
+    for k in drop:
+        data.pop(k, None)
+    if "solver" in data:
+        data["solver"] = {k: v for k, v in data["solver"].items() if k in solver_keys}
+    return CaseFile(case.name, case.source, data)
+
+
+def poro_setup(case: CaseFile, fm):
+    """(Poromechanics model, flow setup, mechanics setup) for a case, validated."""
+    unknown = set(case.data.get("solver", {})) - set(MECH_SOLVER_KEYS) - set(FLOW_SOLVER_KEYS)
+    if unknown:
+        k = sorted(unknown)[0]
+        raise InputError(f"solver.{k}", f"unknown key; this table accepts: {', '.join(sorted(set(MECH_SOLVER_KEYS) | set(FLOW_SOLVER_KEYS)))}")
+    if "flow" not in case.data:
+        raise InputError("flow", "a poromechanics case needs flow data: a [flow] table (permeability, viscosity, "
+                         "biot_modulus, aperture, normal_permeability, boundary conditions)")
+    if "time" not in case.data:
+        raise InputError("time", "a poromechanics case is transient: give [time] with end and step (s)")
+    mech_case = _sub_case(case, ("flow", "time", "model"), MECH_SOLVER_KEYS)
+    flow_case = _sub_case(case, ("mechanics", "material", "materials", "contact", "model"), FLOW_SOLVER_KEYS)
+    ms = mechanics_setup(mech_case, fm)
+    fs = flow_setup(flow_case, fm)
+    if fs.initial_pressure is None:
+        raise InputError("flow.initial_pressure", "is required for a poromechanics run (Pa)")
+    b = float(case.data.get("mechanics", {}).get("biot", 1.0))
+    flow_data = dataclasses.replace(fs.data, biot_coefficient=b)
+    model = Poromechanics(fm, ms.data, flow_data, fs.boundary, fracture_boundary=fs.fracture_boundary,
+                          cell_source=fs.cell_source, fracture_source=fs.fracture_source, alpha=fs.alpha,
+                          fracture_alpha=fs.fracture_alpha, solver=ms.solver, newton=ms.newton)
+    return model, fs, ms
+
+
+def run_poromechanics(case: CaseFile, out: Path) -> dict:
+    t_start = time.perf_counter()
+    fm = build_fractured_mesh(case)
+    model, fs, ms = poro_setup(case, fm)
+    mesh, net = fm.mesh, fm.network
+    g = mesh.geometry
+    schedule = fs.schedule
+    s_arc = arc_length(fm)
+    t0 = time.perf_counter()
+    state = model.initial_state(fs.initial_pressure, t0=schedule.start)
+    p0 = model.cell_pressure(state).copy()
+    log.info("initial state at t = %g s: %d open, %d stick, %d slip faces (%.2f s)", schedule.start,
+             int(np.sum(state.state == 0)), int(np.sum(state.state == 1)), int(np.sum(state.state == 2)),
+             time.perf_counter() - t0)
+    steps, energies, pvd, blocks, series, snapshots = [], [], [], [], [], []
+    timing = {"assembly": 0.0, "linear": 0.0}
+
+    with staged_run_directory(out) as stage:
+        atomic_write_text(stage / "case.toml", case.to_toml())
+
+        def output(k_out: int, n: int, st):
+            fq = model.fracture_quantities(st)
+            p = model.cell_pressure(st)
+            eff, tot = model.stresses(st)
+            write_bulk_vtu(stage / f"bulk_{k_out:04d}.vtu", mesh, cell_data={
+                "pressure": p, "overpressure": p - p0, "displacement": model.mech.cell_displacement(
+                    _mstate(st)), "effective_stress": eff.reshape(len(eff), -1),
+                "total_stress": tot.reshape(len(tot), -1)})
+            write_fracture_vtu(stage / f"fractures_{k_out:04d}.vtu", fm, cell_data={
+                "jump": fq["jump"], "jump_n": fq["jump_n"], "jump_t": fq["jump_t"], "lambda": st.lam,
+                "lambda_n": fq["lambda_n"], "lambda_t": fq["lambda_t"], "state": fq["state"].astype(np.int32),
+                "aperture": fq["aperture"], "p_f": fq["p_f"]})
+            pvd.extend([(st.time, f"bulk_{k_out:04d}.vtu", 0), (st.time, f"fractures_{k_out:04d}.vtu", 1)])
+            blocks.append(fracture_rows(n, st.time, net.names, net.fracture, g.face_centroid[net.faces], s_arc,
+                                        model.mech.face_area, fq["jump"], model.mech.normal, st.lam,
+                                        [STATE_NAMES[k] for k in fq["state"]], fq["aperture"], fq["p_f"]))
+            snapshots.append({"time": st.time, "overpressure": p - p0, "state": fq["state"].copy(),
+                              "lambda_n": fq["lambda_n"].copy(), "jump_t": fq["jump_t"].copy(),
+                              "aperture": fq["aperture"].copy()})
+
+        def record(st):
+            fq = model.fracture_quantities(st)
+            A = model.mech.face_area
+            row = {"time": st.time}
+            for i, name in enumerate(net.names):
+                sel = net.fracture == i
+                w = A[sel].sum()
+                row[name] = (float((A[sel] * fq["aperture"][sel]).sum() / w),
+                             float((A[sel] * fq["p_f"][sel]).sum() / w))
+            series.append(row)
+
+        output(0, 0, state)
+        record(state)
+        k_out = [1]
+
+        def step(st, ta, tb):
+            new, info = model.step(st, tb - ta, tb)
+            return new, {"info": info}
+
+        def on_step(rec, st, is_out):
+            info = rec.info["info"]
+            timing["assembly"] += info.seconds.get("assembly", 0.0)
+            timing["linear"] += info.seconds.get("linear", 0.0)
+            row = {"time": rec.time, "dt": rec.dt, "newton_iterations": info.iterations, "residual": info.residual,
+                   "open": info.open, "stick": info.stick, "slip": info.slip, "seconds": rec.seconds,
+                   "cuts": rec.cuts}
+            if info.energy is not None:
+                row["energy"] = info.energy.summary()
+                energies.append(info.energy)
+            steps.append(row)
+            log.info("step %d/%d: t = %g s, %d Newton iterations (residual %.1e), open %d, stick %d, slip %d, "
+                     "%.2f s", rec.index, len(schedule.times()) - 1, rec.time, info.iterations, info.residual,
+                     info.open, info.stick, info.slip, rec.seconds)
+            record(st)
+            if is_out:
+                output(k_out[0], rec.index, st)
+                k_out[0] += 1
+
+        state, _ = march(schedule, state, step, on_step)
+        violations = check_energy(energies)
+        for v in violations:
+            log.warning("energy estimate violated: %s", v)
+        write_pvd(stage / "solution.pvd", pvd)
+        write_fractures_csv(stage / "fractures.csv", blocks)
+        if mesh.dim == 2:
+            poro_plots(stage, case.name, mesh, net, s_arc, snapshots, series, schedule.end)
+        total = time.perf_counter() - t_start
+        summary = {
+            "case": case.name, "version": __version__, "model": "poromechanics",
+            "mesh": {"dim": mesh.dim, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
+                     "fracture_faces": net.n_faces,
+                     "unknowns": int(model.mech.free.size + model.n_ff * model.dim + model.flow_free.size)},
+            "steps": steps,
+            "energy_check": {"violations": violations, "steps_checked": len(energies)},
+            "fracture_means": series,
+            "totals": {"seconds": total, "peak_memory_mb": peak_memory_mb(),
+                       "seconds_assembly": timing["assembly"], "seconds_linear": timing["linear"],
+                       "seconds_other": total - timing["assembly"] - timing["linear"],
+                       "newton_iterations": int(sum(s["newton_iterations"] for s in steps))},
+        }
+        write_json(stage / "summary.json", summary)
+    return summary
+
+
+def _mstate(st):
+    from ..models.mechanics import MechanicsState
+
+    return MechanicsState(st.u, st.lam, st.state, st.time)

@@ -1,0 +1,82 @@
+"""Poromechanics through the command line (C4 at a coarse mesh): files, energy audit, bad input."""
+
+import csv
+import json
+
+import pytest
+
+from polypore.cli import main
+
+COARSE = ["--set", "mesh.size=0.2", "--set", "mesh.fracture_size=0.1", "--set", "time.step=250",
+          "--set", "time.output_times=[500.0, 2000.0]"]
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_c4_coarse_run_writes_everything_and_passes_the_energy_check(tmp_path, capsys):
+    out = tmp_path / "c4"
+    code, text, err = run(capsys, "run", "dfm-2d", "--out", str(out), *COARSE)
+    assert code == 0, err
+    s = json.loads((out / "summary.json").read_text())
+    assert s["model"] == "poromechanics" and len(s["steps"]) == 8
+    assert s["energy_check"]["violations"] == [] and s["energy_check"]["steps_checked"] == 8
+    for st in s["steps"]:
+        assert st["residual"] < 1e-8
+        assert set(st["energy"]) == {"elastic", "storage", "friction_dissipation", "viscous_dissipation",
+                                     "source_work"}
+    # loading phase (t ≤ T/4): the compression raises the matrix pressure; afterwards it drains
+    means = s["fracture_means"]
+    assert max(r["F2"][1] for r in means) > 1.2e5 and means[-1]["F2"][1] < max(r["F2"][1] for r in means)
+    rows = list(csv.DictReader((out / "fractures.csv").open()))
+    assert {r["time"] for r in rows} == {"0", "500", "2000"}
+    assert all(r["aperture"] and r["p_f"] for r in rows)
+    for name in ("solution.pvd", "bulk_0002.vtu", "fractures_0002.vtu", "overpressure.png", "fracture_means.png",
+                 "contact_t500.png", "contact_t2000.png"):
+        assert (out / name).stat().st_size > 0
+
+
+BAD = [
+    (["time.end=-5"], "time.end", "does not advance"),
+    (["time.output_times=[100.0, 5000.0]"], "time.output_times", "outside the run"),
+    (["flow.biot_modulus=-1e10"], "flow.biot_modulus", ""),
+    (["model=poromechanics", "flow=0"], "flow", ""),
+]
+
+
+@pytest.mark.parametrize("overrides,field,msg", BAD)
+def test_bad_poromechanics_input(tmp_path, capsys, overrides, field, msg):
+    argv = ["run", "dfm-2d", "--out", str(tmp_path / "o"), *COARSE]
+    for o in overrides:
+        argv += ["--set", o]
+    code, _, err = run(capsys, *argv)
+    assert code == 2, err
+    assert f"error: {field}" in err and msg in err and "Traceback" not in err
+    assert not (tmp_path / "o" / "summary.json").exists()
+
+
+def test_poromechanics_case_without_flow_table(tmp_path, capsys):
+    case = tmp_path / "noflow.toml"
+    case.write_text("""
+name = "noflow"
+model = "poromechanics"
+[mesh]
+generator = "cartesian"
+lower = [0.0, 0.0]
+upper = [1.0, 1.0]
+cells = [4, 4]
+[material]
+E = 1e9
+nu = 0.25
+[[mechanics.boundary]]
+name = "ymin"
+u = [0, 0]
+[time]
+end = 10.0
+step = 1.0
+""")
+    code, _, err = run(capsys, "run", str(case), "--out", str(tmp_path / "o"))
+    assert code == 2 and "error: flow" in err and "flow data" in err
