@@ -171,3 +171,18 @@ def test_interpolate_bubble_captures_the_face_mean_of_a_quadratic():
     a, b = X[:, 0, 0], X[:, 1, 0]
     exact = (a * a + a * b + b * b) / 3 - (a * a + b * b) / 2
     assert np.allclose(v[P.space.n_sides:, 0], exact, atol=1e-15)
+
+
+def test_block_amg_solver_matches_the_direct_solution():
+    """GMRES + AMG on the condensed displacement block gives the direct solver's Newton solution."""
+    pytest.importorskip("pyamg")
+    from polypore.cases.casefile import load_case
+    from polypore.cases.run import solve_static
+
+    ref = solve_static(load_case("coulomb-3d", ["mesh.size=0.4", "solver.linear=superlu"]))
+    blk = solve_static(load_case("coulomb-3d", ["mesh.size=0.4", "solver.linear=block-amg"]))
+    (p0, s0), (p1, s1) = ref[:2], blk[:2]
+    assert np.array_equal(s0.state, s1.state)
+    assert np.abs(s1.u - s0.u).max() <= 1e-6 * np.abs(s0.u).max()
+    assert np.abs(s1.lam - s0.lam).max() <= 1e-6 * np.abs(s0.lam).max()
+    assert len(p1.solver.iterations) == s1.newton_iterations and max(p1.solver.iterations) < 300

@@ -199,11 +199,22 @@ class ContactMechanics:
         self._setup_contact()
         self._setup_pattern(J)
         self.solver = solver or LinearSolver("auto")
+        if getattr(self.solver, "backend", None) == "block-amg":
+            self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8)
         self.newton = newton or NewtonOptions(label="contact Newton")
         self.seconds_setup = time.perf_counter() - t0
         log.info("mechanics: %d displacement dofs (%d free), %d multipliers, %s bubbles; set up in %.2f s",
                  self.n_dofs, self.free.size, self.n_ff * d, "two-sided" if data.two_sided else "one-sided",
                  self.seconds_setup)
+
+    def block_solver(self, rtol: float = 1e-8, rho: float = 0.1):
+        """GMRES + AMG on the condensed displacement block (3D sizes), see solvers/block_contact.py."""
+        from ..solvers.block_contact import BlockContactSolver
+        from ..solvers.linear import rigid_body_modes
+
+        R = np.zeros((self.n_dofs, 3 if self.dim == 2 else 6))
+        R[: self.space.n_sides * self.dim] = rigid_body_modes(self.side_points)
+        return BlockContactSolver(self.free.size, self.dim, near_nullspace=R[self.free], rho=rho, rtol=rtol)
 
     # ---- set-up -------------------------------------------------------------------------
     def _boundary_faces(self, name: str, field_: str) -> np.ndarray:

@@ -8,7 +8,7 @@ The Newton Jacobian has the block form (u: displacement dofs, l: multiplier dofs
 with Cl block-diagonal (one d×d block per fracture face). Where a face is closed, its Cl
 block is singular (the row is a constraint on the jump), so the multipliers cannot be
 condensed exactly. The preconditioner condenses them with a regularised block
-Cl_ρ = Cl − ρ s I (s the face's coupling scale, ‖Cu‖ of its rows): this turns closed faces
+Cl_ρ = Cl + ρ s I (s the face's coupling scale, ‖Cu‖ of its rows): this turns closed faces
 into penalty springs of the stiffness of the neighbouring cells, and
 
     S = A − Bt Cl_ρ⁻¹ Cu
@@ -72,7 +72,7 @@ class BlockContactSolver:
         # coupling scale of each face: norm of its Cu rows
         rowscale = np.sqrt(np.asarray(Cu.multiply(Cu).sum(axis=1)).ravel()).reshape(nf, d).max(axis=1)
         scale = np.maximum(rowscale, 1e-300)
-        reg = blocks - self.rho * scale[:, None, None] * np.eye(d)
+        reg = blocks + self.rho * scale[:, None, None] * np.eye(d)
         inv = np.linalg.inv(reg)
         Cinv = sp.block_diag(list(inv), format="csr") if nf < 2000 else _block_diag_csr(inv)
         S = (A - Bt @ Cinv @ Cu).tocsr()

@@ -6,6 +6,8 @@ Backends
 ``pardiso``  Intel MKL PARDISO through pypardiso (extra ``fast``); the 3D direct default.
 ``amg``      pyamg smoothed aggregation (optionally with a near-nullspace such as rigid-body
              modes) preconditioning CG (symmetric) or GMRES (extra ``amg``).
+``block-amg`` for contact Newton systems: GMRES preconditioned by AMG on the condensed
+             displacement block (:mod:`.block_contact`); the model builds it.
 ``auto``     pardiso if installed, else superlu.
 """
 
@@ -23,7 +25,7 @@ from ..core.errors import InputError, RunError
 
 log = logging.getLogger("polypore")
 
-BACKENDS = ("auto", "superlu", "pardiso", "amg")
+BACKENDS = ("auto", "superlu", "pardiso", "amg", "block-amg")
 
 
 def have_pardiso() -> bool:
@@ -72,7 +74,7 @@ class LinearSolver:
             self.backend = "pardiso" if have_pardiso() else "superlu"
         if self.backend == "pardiso" and not have_pardiso():
             raise InputError("solver.linear", "'pardiso' needs the optional extra: pip install 'polypore[fast]'")
-        if self.backend == "amg":
+        if self.backend in ("amg", "block-amg"):
             try:
                 import pyamg  # noqa: F401
             except ImportError:
@@ -88,8 +90,10 @@ class LinearSolver:
             import pypardiso
 
             x = pypardiso.spsolve(A, b)
-        else:
+        elif self.backend == "amg":
             x = self._amg(A, b)
+        else:
+            raise InputError("solver.linear", "'block-amg' applies to contact mechanics only (the model sets it up)")
         if not np.all(np.isfinite(x)):
             raise RunError("the linear system is singular (the solution has NaN/Inf): check that every part of the "
                            "body is held (Dirichlet conditions) and that the contact data are consistent")
