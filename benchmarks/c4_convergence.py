@@ -1,0 +1,124 @@
+"""C4 mesh self-convergence: (T⁺ − T⁻)/2 and the jump along F1–F3 at the final time against
+the finest mesh (issue 5).
+
+    .venv/bin/python benchmarks/c4_convergence.py [--levels 4] [--out docs/c4_convergence]
+
+Level k uses mesh.size = 0.1/2^k and mesh.fracture_size = 0.04/2^k with C4's time step
+(20 s, T = 2000 s). The finest level is the reference. Fracture quantities are compared as
+profiles along each fracture's arc length s: the reference face values are averaged over each
+coarse face's s-interval, and the relative L2 error is sqrt(Σ|σ| |q − q_ref|²)/sqrt(Σ|σ| |q_ref|²)
+over F1–F3. (T⁺ − T⁻)/2 = T⁺ = −λ (action–reaction). The error is plotted against the
+largest fracture face size, as on the slides.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from polypore.cases.casefile import load_case
+from polypore.cases.convergence import fit_rate
+from polypore.cases.meshing import build_fractured_mesh
+from polypore.cases.poro_run import poro_setup
+from polypore.cases.schedule import march
+from polypore.models.fracture_geometry import arc_length
+
+FRACTURES = ("F1", "F2", "F3")
+
+
+def solve_level(k: int, linear: str):
+    case = load_case("dfm-2d", [f"mesh.size={0.1 / 2 ** k}", f"mesh.fracture_size={0.04 / 2 ** k}",
+                                f"solver.linear={linear}"])
+    fm = build_fractured_mesh(case)
+    model, fs, _ = poro_setup(case, fm)
+    st = model.initial_state(fs.initial_pressure)
+    its = []
+
+    def step(s, ta, tb):
+        new, info = model.step(s, tb - ta, tb, energy=False)
+        its.append(info.iterations)
+        return new, {}
+
+    st, _ = march(fs.schedule, st, step)
+    fq = model.fracture_quantities(st)
+    net = fm.network
+    out = {"cells": fm.mesh.n_cells, "h_frac": float(fm.mesh.geometry.face_area[net.faces].max()),
+           "newton_total": int(sum(its)), "profiles": {}}
+    s = arc_length(fm)
+    for name in FRACTURES:
+        f = net.faces_of(name)
+        out["profiles"][name] = {"s": s[f], "area": model.mech.face_area[f], "traction": -st.lam[f],
+                                 "jump": fq["jump"][f]}
+    return out
+
+
+def project(ref, s, area):
+    """Average of the reference face values over the s-intervals of coarse faces (centres s, lengths area)."""
+    lo, hi = s - area / 2, s + area / 2
+    rs, ra = ref["s"], ref["area"]
+    rlo, rhi = rs - ra / 2, rs + ra / 2
+    out = {}
+    for key in ("traction", "jump"):
+        v = ref[key]
+        acc = np.zeros((len(s), v.shape[1]))
+        w = np.zeros(len(s))
+        for j in range(len(rs)):             # 1D profiles with at most a few thousand faces
+            ov = np.clip(np.minimum(hi, rhi[j]) - np.maximum(lo, rlo[j]), 0, None)
+            acc += ov[:, None] * v[j]
+            w += ov
+        out[key] = acc / np.maximum(w, 1e-300)[:, None]
+    return out
+
+
+def main():
+    logging.basicConfig(level=logging.WARNING)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--levels", type=int, default=4)
+    ap.add_argument("--linear", default="auto")
+    ap.add_argument("--out", default="docs/c4_convergence")
+    args = ap.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    runs = []
+    for k in range(args.levels):
+        t0 = time.perf_counter()
+        r = solve_level(k, args.linear)
+        r["seconds"] = time.perf_counter() - t0
+        runs.append(r)
+        print(f"level {k}: {r['cells']} cells, h_frac {r['h_frac']:.4g} m, {r['newton_total']} Newton iterations, "
+              f"{r['seconds']:.0f} s", flush=True)
+    ref = runs[-1]
+    rows = []
+    for k, r in enumerate(runs[:-1]):
+        num = {"traction": 0.0, "jump": 0.0}
+        den = {"traction": 0.0, "jump": 0.0}
+        for name in FRACTURES:
+            p = r["profiles"][name]
+            q = project(ref["profiles"][name], p["s"], p["area"])
+            for key in num:
+                num[key] += float(np.sum(p["area"] * np.sum((p[key] - q[key]) ** 2, axis=1)))
+                den[key] += float(np.sum(p["area"] * np.sum(q[key] ** 2, axis=1)))
+        rows.append({"level": k, "cells": r["cells"], "h_frac": r["h_frac"], "newton_total": r["newton_total"],
+                     "seconds": r["seconds"], "traction_L2_rel": np.sqrt(num["traction"] / den["traction"]),
+                     "jump_L2_rel": np.sqrt(num["jump"] / den["jump"])})
+    hs = [r["h_frac"] for r in rows]
+    rates = {key: fit_rate(hs, [r[key] for r in rows]) for key in ("traction_L2_rel", "jump_L2_rel")}
+    result = {"reference": {"cells": ref["cells"], "h_frac": ref["h_frac"], "seconds": ref["seconds"]},
+              "levels": rows, "rates": rates}
+    (out / "c4_convergence.json").write_text(json.dumps(result, indent=2))
+    from polypore.io.plots import convergence_plot
+
+    convergence_plot(out / "c4_convergence.png", hs, {"(T⁺−T⁻)/2": [r["traction_L2_rel"] for r in rows],
+                                                      "[[u]]": [r["jump_L2_rel"] for r in rows]},
+                     {"(T⁺−T⁻)/2": rates["traction_L2_rel"], "[[u]]": rates["jump_L2_rel"]},
+                     title="C4: F1–F3 at T against the finest mesh")
+    print(json.dumps(result, indent=2))
+
+
+if __name__ == "__main__":
+    main()
