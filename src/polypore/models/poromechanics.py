@@ -126,10 +126,12 @@ class Poromechanics:
         self.fm = fm
         self.solver = solver or LinearSolver("auto")
         self.newton = newton or NewtonOptions(label="poromechanics Newton")
+        block = getattr(self.solver, "backend", None) == "block-amg"
         self.mech = ContactMechanics(fm, mech_data, self.solver, self.newton)
         self.flow = FlowModel(fm, flow_data, flow_boundary, fracture_boundary=fracture_boundary,
                               cell_source=cell_source, fracture_source=fracture_source, alpha=alpha,
-                              fracture_alpha=fracture_alpha, solver=self.solver)
+                              fracture_alpha=fracture_alpha,
+                              solver=LinearSolver("amg", symmetric=True) if block else self.solver)
         self.dim = fm.mesh.dim
         self.n_ff = fm.network.n_faces
         self.biot = float(flow_data.biot_coefficient)
@@ -215,6 +217,11 @@ class Poromechanics:
         self._a_vals = A.data
         self._bt_vals = Bt.data * beta[Bt.col // d] if Bt.nnz else Bt.data
         self.n_unknowns = n
+        if getattr(self.solver, "backend", None) == "block-amg":
+            from ..solvers.block_contact import BlockPoroSolver
+
+            R = self.mech.block_solver().near_nullspace
+            self.solver = BlockPoroSolver(nfree, d, nl, near_nullspace=R)
 
     # ---- scaling and step coefficients ----------------------------------------------------
     def pressure_scale(self, dt: float) -> np.ndarray:
@@ -309,7 +316,7 @@ class Poromechanics:
             if mech.data.contact.initial == "closed":
                 scale = max(np.abs(F).max(initial=0.0), 1e-300)
                 x0[nfree:] = (1e-12 * scale * mech.normal / mech.law.beta[:, None]).ravel()
-            res = semismooth_newton(lambda x: mech.linearise(x, F, udir, None), x0, self.solver,
+            res = semismooth_newton(lambda x: mech.linearise(x, F, udir, None), x0, mech.solver,
                                     lambda dx, x: float(np.linalg.norm(dx) / max(np.linalg.norm(x + dx), 1e-300)),
                                     NewtonOptions(**{**self.newton.__dict__, "label": "initial equilibrium"}), verbose)
             u, lam = mech._split(res.x, udir)

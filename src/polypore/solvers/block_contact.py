@@ -120,3 +120,82 @@ def _block_diag_csr(blocks: np.ndarray) -> sp.csr_matrix:
     rows = (np.arange(nf)[:, None, None] * d + np.arange(d)[None, :, None]) + 0 * np.arange(d)[None, None, :]
     cols = (np.arange(nf)[:, None, None] * d + np.arange(d)[None, None, :]) + 0 * np.arange(d)[None, :, None]
     return sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())), shape=(nf * d, nf * d))
+
+
+@dataclass
+class BlockPoroSolver:
+    """GMRES for the coupled step Jacobian [u, l, p] with a block lower-triangular preconditioner.
+
+    Blocks: the (u, l) part is condensed as in :class:`BlockContactSolver` into S; the
+    pressure block gets the algebraic fixed-stress-type Schur approximation
+    Ŝ = F − G_pu diag(S)⁻¹ G_up (sparse); AMG on S (rigid-body near-nullspace) and on Ŝ.
+    Apply: x_u = S⁻¹ r_u, x_p = Ŝ⁻¹ (r_p − G_pu x_u), x_l = Cl_ρ⁻¹ (r_l − Cu x_u).
+
+    Parameters
+    ----------
+    n_u, d, n_l : sizes of the displacement block, the multiplier block size, the multiplier count × d
+    """
+
+    n_u: int
+    d: int
+    n_l: int
+    near_nullspace: np.ndarray | None = None
+    rho: float = 0.1
+    rtol: float = 1e-8
+    maxiter: int = 400
+    restart: int = 100
+    iterations: list = field(default_factory=list)
+    seconds: float = 0.0
+
+    def solve(self, J, rhs) -> np.ndarray:
+        import pyamg
+
+        t0 = time.perf_counter()
+        J = sp.csr_matrix(J)
+        nu, nl, d = self.n_u, self.n_l, self.d
+        po = nu + nl
+        A, Bt, Gup = J[:nu, :nu], J[:nu, nu:po], J[:nu, po:]
+        Cu, Cl = J[nu:po, :nu], J[nu:po, nu:po]
+        Gpu, F = J[po:, :nu], J[po:, po:]
+        nf = nl // d
+        if nf:
+            blocks = _diag_blocks(Cl, nf, d)
+            rowscale = np.sqrt(np.asarray(Cu.multiply(Cu).sum(axis=1)).ravel()).reshape(nf, d).max(axis=1)
+            reg = blocks + self.rho * np.maximum(rowscale, 1e-300)[:, None, None] * np.eye(d)
+            Cinv = _block_diag_csr(np.linalg.inv(reg))
+            S = (A - Bt @ Cinv @ Cu).tocsr()
+        else:
+            Cinv = sp.csr_matrix((0, 0))
+            S = A.tocsr()
+        S = 0.5 * (S + S.T)
+        dS = S.diagonal()
+        Sp = (F - Gpu @ sp.diags(1.0 / dS) @ Gup).tocsr()
+        Sp = 0.5 * (Sp + Sp.T)
+        sign = -1.0 if np.mean(Sp.diagonal()) < 0 else 1.0   # AMG wants a positive definite operator
+        ml_u = pyamg.smoothed_aggregation_solver(S, B=self.near_nullspace, strength="symmetric", max_coarse=1000)
+        ml_p = pyamg.smoothed_aggregation_solver(sign * Sp, strength="symmetric", max_coarse=1000)
+        Mu, Mp = ml_u.aspreconditioner(cycle="V"), ml_p.aspreconditioner(cycle="V")
+
+        def apply(r):
+            ru, rl, rp = r[:nu], r[nu:po], r[po:]
+            xu = Mu @ (ru - Bt @ (Cinv @ rl)) if nf else Mu @ ru
+            xp = sign * (Mp @ (rp - Gpu @ xu))
+            xl = Cinv @ (rl - Cu @ xu) if nf else rl
+            return np.concatenate([xu, xl, xp])
+
+        n = J.shape[0]
+        M = spla.LinearOperator((n, n), matvec=apply, dtype=float)
+        its = [0]
+
+        def cb(_):
+            its[0] += 1
+
+        x, info = spla.gmres(J, rhs, M=M, rtol=self.rtol, restart=self.restart, maxiter=self.maxiter,
+                             callback=cb, callback_type="pr_norm")
+        self.iterations.append(its[0])
+        self.seconds += time.perf_counter() - t0
+        if info != 0:
+            res = np.linalg.norm(J @ x - rhs) / max(np.linalg.norm(rhs), 1e-300)
+            raise RunError(f"GMRES did not reach rtol={self.rtol:g} in {its[0]} iterations (relative residual "
+                           f"{res:.2e}); try solver.linear = 'pardiso'")
+        return x
