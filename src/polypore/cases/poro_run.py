@@ -72,7 +72,8 @@ def poro_setup(case: CaseFile, fm):
     flow_data = dataclasses.replace(fs.data, biot_coefficient=b)
     model = Poromechanics(fm, ms.data, flow_data, fs.boundary, fracture_boundary=fs.fracture_boundary,
                           cell_source=fs.cell_source, fracture_source=fs.fracture_source, alpha=fs.alpha,
-                          fracture_alpha=fs.fracture_alpha, solver=ms.solver, newton=ms.newton)
+                          fracture_alpha=fs.fracture_alpha, solver=ms.solver,
+                          newton=dataclasses.replace(ms.newton, label="poromechanics Newton"))
     return model, fs, ms
 
 
