@@ -250,9 +250,16 @@ class SingleCrack:
         # faces; the error away from the tips (|ξ − ℓ| ≤ 0.9 ℓ) and the h^{1/2}-weighted one
         # (the H^{-1/2} stand-in of C1) show the convergence of the rest.
         far = np.abs(s - self.half_length) <= 0.9 * self.half_length
-        h = problem.fm.mesh.geometry.face_diameter[problem.fm.network.faces]
+        net = problem.fm.network
+        h = problem.fm.mesh.geometry.face_diameter[net.faces]
+        # (T⁺ − T⁻)/2: the one-sided tractions of the two cells of each face averaged (the
+        # discrete T⁺ and −T⁻ differ); its normal part against the analytic −λ_n
+        S = problem.stress(st)
+        t_avg = 0.5 * np.einsum("fij,fj->fi", S[net.plus_cell] + S[net.minus_cell], n)
+        tn = -np.einsum("fi,fi->f", t_avg, n)
         return {"slip_L2_rel": float(np.sqrt(np.sum(A * (slip - se) ** 2) / np.sum(A * se ** 2))),
                 "lambda_n_L2_rel": float(np.sqrt(np.sum(A * (ln - le) ** 2) / np.sum(A * le ** 2))),
                 "lambda_n_L2_rel_away_from_tips": float(np.sqrt(np.sum((A * (ln - le) ** 2)[far])
                                                                 / np.sum((A * le ** 2)[far]))),
-                "lambda_n_h12": float(np.sqrt(np.sum(h * A * (ln - le) ** 2)))}
+                "lambda_n_h12": float(np.sqrt(np.sum(h * A * (ln - le) ** 2))),
+                "traction_n_L2_rel": float(np.sqrt(np.sum(A * (tn - le) ** 2) / np.sum(A * le ** 2)))}
