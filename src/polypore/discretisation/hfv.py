@@ -210,8 +210,50 @@ def matrix_hfv(mesh, conductivity: np.ndarray, alpha: float | None = None) -> HF
     cf = mesh.cell_faces
     sgn = mesh.cell_face_sign.astype(float)[:, None]
     A = sgn * g.face_vector_area[cf.values]
-    X = g.face_centroid[cf.values] - g.cell_centroid[cf.rows_of_entries()]
-    return _build(cf, g.cell_centroid, g.cell_volume, A, X, np.asarray(conductivity, float), d, alpha)
+    xK = cell_points(mesh)
+    X = g.face_centroid[cf.values] - xK[cf.rows_of_entries()]
+    return _build(cf, xK, g.cell_volume, A, X, np.asarray(conductivity, float), d, alpha)
+
+
+def cell_points(mesh, margin: float = 0.05) -> np.ndarray:
+    """(n_cells, d) the HFV cell points x_K (scheme.md §5 **Choice**: the centroid).
+
+    HFV needs every face plane at a positive distance d_Kσ from x_K. Where the centroid is
+    closer to a face plane than ``margin`` × the cell's inscribed-ball scale |K|/|∂K| (or
+    outside it: strongly non-convex cells, e.g. agglomerated ones), x_K is the Chebyshev
+    centre of the face half-spaces (the point farthest from every face plane, a small LP per
+    such cell); a cell without an interior point at positive distance from all its face
+    planes is not star-shaped and is rejected.
+    """
+    g = mesh.geometry
+    cf = mesh.cell_faces
+    cell = cf.rows_of_entries()
+    sgn = mesh.cell_face_sign.astype(float)[:, None]
+    vec = sgn * g.face_vector_area[cf.values]
+    area = np.linalg.norm(vec, axis=1)
+    n = vec / area[:, None]
+    dist = np.einsum("ki,ki->k", g.face_centroid[cf.values] - g.cell_centroid[cell], n)
+    perim = np.bincount(cell, weights=area, minlength=mesh.n_cells)
+    scale = g.cell_volume / perim
+    mind = np.full(mesh.n_cells, np.inf)
+    np.minimum.at(mind, cell, dist)
+    xK = g.cell_centroid.copy()
+    bad = np.flatnonzero(mind < margin * scale)
+    if bad.size:
+        from scipy.optimize import linprog
+
+        for k in bad:   # few cells; each a (d + 1)-variable LP
+            rows = slice(cf.offsets[k], cf.offsets[k + 1])
+            N = n[rows]
+            b = np.einsum("ki,ki->k", g.face_centroid[cf.values[rows]], N)
+            # max r  s.t.  N x + r ≤ N·x̄_σ  (x inside every face half-space by at least r)
+            res = linprog(np.r_[np.zeros(mesh.dim), -1.0], A_ub=np.c_[N, np.ones(len(b))], b_ub=b,
+                          bounds=[(None, None)] * mesh.dim + [(0, None)], method="highs")
+            if not res.success or res.x[-1] <= 1e-9 * scale[k]:
+                raise MeshError("mesh.cells", f"cell {k} is not star-shaped with respect to any interior point "
+                                "(no point at a positive distance from all its face planes): HFV cannot use it")
+            xK[k] = res.x[:-1]
+    return xK
 
 
 @dataclass(frozen=True, eq=False)
