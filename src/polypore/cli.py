@@ -121,6 +121,13 @@ def _print_mesh_report(report: dict) -> None:
     print("\n".join(lines))
 
 
+def _case_arguments(p, default_out: str) -> None:
+    p.add_argument("case", metavar="CASE", help="built-in case name or path to a TOML case file")
+    p.add_argument("--out", metavar="DIR", help=f"output directory (default: {default_out})")
+    p.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field, e.g. mesh.size=0.1")
+    p.add_argument("--force", action="store_true", help="write into a non-empty output directory")
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="polypore", description="Poromechanics of fractured rock with frictional "
                                 "contact on polytopal meshes.")
@@ -130,23 +137,14 @@ def build_parser() -> argparse.ArgumentParser:
     c = sub.add_parser("cases", help="list the built-in cases")
     c.set_defaults(func=cmd_cases)
     m = sub.add_parser("mesh", help="build and write a case's mesh and print its statistics")
-    m.add_argument("case", metavar="CASE", help="built-in case name or path to a TOML case file")
-    m.add_argument("--out", metavar="DIR", help="output directory (default: results/<case>/)")
-    m.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field, e.g. mesh.size=0.1")
-    m.add_argument("--force", action="store_true", help="write into a non-empty output directory")
+    _case_arguments(m, "results/<case>/")
     m.set_defaults(func=cmd_mesh)
     r = sub.add_parser("run", help="run a case and write its results")
-    r.add_argument("case", metavar="CASE", help="built-in case name or path to a TOML case file")
-    r.add_argument("--out", metavar="DIR", help="output directory (default: results/<case>/)")
-    r.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field, e.g. mesh.size=0.1")
-    r.add_argument("--force", action="store_true", help="write into a non-empty output directory")
+    _case_arguments(r, "results/<case>/")
     r.set_defaults(func=cmd_run)
     c = sub.add_parser("convergence", help="mesh-refinement study of a case with an exact solution")
-    c.add_argument("case", metavar="CASE", help="built-in case name or path to a TOML case file")
+    _case_arguments(c, "results/<case>-convergence/")
     c.add_argument("--levels", type=int, default=3, help="number of meshes (each halves the mesh size)")
-    c.add_argument("--out", metavar="DIR", help="output directory (default: results/<case>-convergence/)")
-    c.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field")
-    c.add_argument("--force", action="store_true", help="write into a non-empty output directory")
     c.set_defaults(func=cmd_convergence)
     return p
 

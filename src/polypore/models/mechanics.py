@@ -195,6 +195,7 @@ class ContactMechanics:
         vals = np.repeat(J.data, d)
         self.Jv = sp.csr_array((vals, (rows, cols)), shape=(self.n_ff * d, self.n_dofs))
         self.Bv = sp.csr_array((vals * np.repeat(self.face_area[J.row], d), (rows, cols)), shape=self.Jv.shape)
+        self._face_means = {}          # traction boundaries: face-mean operators, built on first use
         self._setup_dirichlet()
         self._setup_contact()
         self._setup_pattern(J)
@@ -314,8 +315,9 @@ class ContactMechanics:
         for bc in data.traction:
             faces = self._boundary_faces(bc.boundary, f"mechanics.boundary.{bc.boundary}")
             gv = np.asarray(bc.value(g.face_centroid[faces], t), float).reshape(-1, d)
-            M = face_mean_operator(self.space, faces)
-            F += M.T @ (g.face_area[faces][:, None] * gv)
+            if bc.boundary not in self._face_means:
+                self._face_means[bc.boundary] = face_mean_operator(self.space, faces)
+            F += self._face_means[bc.boundary].T @ (g.face_area[faces][:, None] * gv)
         if data.matrix_pressure is not None:
             p = np.asarray(data.matrix_pressure(xK, t), float) * np.broadcast_to(data.biot, (mesh.n_cells,))
             for j in range(d):

@@ -67,16 +67,7 @@ class BlockContactSolver:
         Bt = J[:n_u, n_u:]
         Cu = J[n_u:, :n_u]
         Cl = J[n_u:, n_u:]
-        nf = (J.shape[0] - n_u) // d
-        blocks = _diag_blocks(Cl, nf, d)                                  # (nf, d, d)
-        # coupling scale of each face: norm of its Cu rows
-        rowscale = np.sqrt(np.asarray(Cu.multiply(Cu).sum(axis=1)).ravel()).reshape(nf, d).max(axis=1)
-        scale = np.maximum(rowscale, 1e-300)
-        reg = blocks + self.rho * scale[:, None, None] * np.eye(d)
-        inv = np.linalg.inv(reg)
-        Cinv = sp.block_diag(list(inv), format="csr") if nf < 2000 else _block_diag_csr(inv)
-        S = (A - Bt @ Cinv @ Cu).tocsr()
-        S = 0.5 * (S + S.T)                                             # AMG wants symmetric input
+        Cinv, S = _condense(A, Bt, Cu, Cl, d, self.rho)
         ml = pyamg.smoothed_aggregation_solver(S, B=self.near_nullspace, strength="symmetric", max_coarse=1000)
         amg = ml.aspreconditioner(cycle="V")
 
@@ -86,23 +77,42 @@ class BlockContactSolver:
             xc = Cinv @ (rc - Cu @ xu)
             return np.concatenate([xu, xc])
 
-        n = J.shape[0]
-        M = spla.LinearOperator((n, n), matvec=apply, dtype=float)
-        its = [0]
-
-        def cb(_):
-            its[0] += 1
-
-        x, info = spla.gmres(J, rhs, M=M, rtol=self.rtol, restart=self.restart, maxiter=self.maxiter,
-                             callback=cb, callback_type="pr_norm")
-        self.iterations.append(its[0])
+        x = _gmres(J, rhs, apply, self)
         self.seconds += time.perf_counter() - t0
-        if info != 0:
-            res = np.linalg.norm(J @ x - rhs) / max(np.linalg.norm(rhs), 1e-300)
-            raise RunError(f"GMRES did not reach rtol={self.rtol:g} in {its[0]} iterations (relative residual "
-                           f"{res:.2e}); try solver.linear = 'pardiso' or a smaller contact.beta")
-        log.debug("block contact solver: %d GMRES iterations, %.2f s", its[0], time.perf_counter() - t0)
+        log.debug("block contact solver: %d GMRES iterations, %.2f s", self.iterations[-1], time.perf_counter() - t0)
         return x
+
+
+def _condense(A, Bt, Cu, Cl, d: int, rho: float):
+    """(Cl_ρ⁻¹ as csr, S = A − Bt Cl_ρ⁻¹ Cu symmetrised): closed faces become springs (module docstring)."""
+    nf = Cl.shape[0] // d
+    if nf == 0:
+        return sp.csr_matrix((0, 0)), sp.csr_matrix(A)
+    blocks = _diag_blocks(Cl, nf, d)
+    rowscale = np.sqrt(np.asarray(Cu.multiply(Cu).sum(axis=1)).ravel()).reshape(nf, d).max(axis=1)
+    reg = blocks + rho * np.maximum(rowscale, 1e-300)[:, None, None] * np.eye(d)
+    Cinv = _block_diag_csr(np.linalg.inv(reg))
+    S = (A - Bt @ Cinv @ Cu).tocsr()
+    return Cinv, (0.5 * (S + S.T)).tocsr()
+
+
+def _gmres(J, rhs, apply, solver):
+    """Right-preconditioned GMRES with iteration count and failure message (shared by both solvers)."""
+    n = J.shape[0]
+    M = spla.LinearOperator((n, n), matvec=apply, dtype=float)
+    its = [0]
+
+    def cb(_):
+        its[0] += 1
+
+    x, info = spla.gmres(J, rhs, M=M, rtol=solver.rtol, restart=solver.restart, maxiter=solver.maxiter,
+                         callback=cb, callback_type="pr_norm")
+    solver.iterations.append(its[0])
+    if info != 0:
+        res = np.linalg.norm(J @ x - rhs) / max(np.linalg.norm(rhs), 1e-300)
+        raise RunError(f"GMRES did not reach rtol={solver.rtol:g} in {its[0]} iterations (relative residual "
+                       f"{res:.2e}); try solver.linear = 'pardiso'")
+    return x
 
 
 def _diag_blocks(C: sp.csr_matrix, nf: int, d: int) -> np.ndarray:
@@ -158,16 +168,7 @@ class BlockPoroSolver:
         Cu, Cl = J[nu:po, :nu], J[nu:po, nu:po]
         Gpu, F = J[po:, :nu], J[po:, po:]
         nf = nl // d
-        if nf:
-            blocks = _diag_blocks(Cl, nf, d)
-            rowscale = np.sqrt(np.asarray(Cu.multiply(Cu).sum(axis=1)).ravel()).reshape(nf, d).max(axis=1)
-            reg = blocks + self.rho * np.maximum(rowscale, 1e-300)[:, None, None] * np.eye(d)
-            Cinv = _block_diag_csr(np.linalg.inv(reg))
-            S = (A - Bt @ Cinv @ Cu).tocsr()
-        else:
-            Cinv = sp.csr_matrix((0, 0))
-            S = A.tocsr()
-        S = 0.5 * (S + S.T)
+        Cinv, S = _condense(A, Bt, Cu, Cl, d, self.rho)
         dS = S.diagonal()
         Sp = (F - Gpu @ sp.diags(1.0 / dS) @ Gup).tocsr()
         Sp = 0.5 * (Sp + Sp.T)
@@ -183,19 +184,6 @@ class BlockPoroSolver:
             xl = Cinv @ (rl - Cu @ xu) if nf else rl
             return np.concatenate([xu, xl, xp])
 
-        n = J.shape[0]
-        M = spla.LinearOperator((n, n), matvec=apply, dtype=float)
-        its = [0]
-
-        def cb(_):
-            its[0] += 1
-
-        x, info = spla.gmres(J, rhs, M=M, rtol=self.rtol, restart=self.restart, maxiter=self.maxiter,
-                             callback=cb, callback_type="pr_norm")
-        self.iterations.append(its[0])
+        x = _gmres(J, rhs, apply, self)
         self.seconds += time.perf_counter() - t0
-        if info != 0:
-            res = np.linalg.norm(J @ x - rhs) / max(np.linalg.norm(rhs), 1e-300)
-            raise RunError(f"GMRES did not reach rtol={self.rtol:g} in {its[0]} iterations (relative residual "
-                           f"{res:.2e}); try solver.linear = 'pardiso'")
         return x
