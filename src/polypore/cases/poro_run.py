@@ -143,12 +143,15 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             row = {"time": rec.time, "dt": rec.dt, "newton_iterations": info.iterations, "residual": info.residual,
                    "open": info.open, "stick": info.stick, "slip": info.slip, "seconds": rec.seconds,
                    "cuts": rec.cuts}
+            if info.linear_iterations:
+                row["linear_iterations"] = info.linear_iterations
             if info.energy is not None:
                 row["energy"] = info.energy.summary()
                 energies.append(info.energy)
             steps.append(row)
-            log.info("step %d/%d: t = %g s, %d Newton iterations (residual %.1e), open %d, stick %d, slip %d, "
-                     "%.2f s", rec.index, len(schedule.times()) - 1, rec.time, info.iterations, info.residual,
+            lin = f", {sum(info.linear_iterations)} GMRES iterations" if info.linear_iterations else ""
+            log.info("step %d/%d: t = %g s, %d Newton iterations (residual %.1e)%s, open %d, stick %d, slip %d, "
+                     "%.2f s", rec.index, len(schedule.times()) - 1, rec.time, info.iterations, info.residual, lin,
                      info.open, info.stick, info.slip, rec.seconds)
             record(st)
             if is_out:

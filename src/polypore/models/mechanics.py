@@ -211,11 +211,23 @@ class ContactMechanics:
     def block_solver(self, rtol: float = 1e-8, rho: float = 0.1):
         """GMRES + AMG on the condensed displacement block (3D sizes), see solvers/block_contact.py."""
         from ..solvers.block_contact import BlockContactSolver
+
+        return BlockContactSolver(self.free.size, self.dim, self.condensation(rho), near_nullspace=self.rigid_modes(),
+                                  rtol=rtol)
+
+    def condensation(self, rho: float = 0.1):
+        """Contact-row data for the block preconditioners: c_σ = |σ| β_σ (the scaled rows), n⁺."""
+        from ..solvers.block_contact import ContactCondensation
+
+        return ContactCondensation(self.face_area * self.law.beta, self.normal, rho)
+
+    def rigid_modes(self) -> np.ndarray:
+        """(n_free, 3 or 6) rigid motions of the free displacement dofs (bubbles zero)."""
         from ..solvers.linear import rigid_body_modes
 
         R = np.zeros((self.n_dofs, 3 if self.dim == 2 else 6))
         R[: self.space.n_sides * self.dim] = rigid_body_modes(self.side_points)
-        return BlockContactSolver(self.free.size, self.dim, near_nullspace=R[self.free], rho=rho, rtol=rtol)
+        return R[self.free]
 
     # ---- set-up -------------------------------------------------------------------------
     def _boundary_faces(self, name: str, field_: str) -> np.ndarray:

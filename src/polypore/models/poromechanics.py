@@ -84,7 +84,8 @@ class PoroState:
 @dataclass
 class StepInfo:
     """Newton report of one step: iterations, final scaled residual, open/stick/slip counts,
-    per-iteration history, seconds, and the energy terms (:class:`EnergyTerms`) if computed."""
+    per-iteration history, seconds, the energy terms (:class:`EnergyTerms`) if computed and,
+    with an iterative solver, the Krylov iterations of each Newton iteration."""
 
     iterations: int
     residual: float
@@ -94,6 +95,7 @@ class StepInfo:
     history: list = field(default_factory=list)
     seconds: dict = field(default_factory=dict)
     energy: object = None
+    linear_iterations: list = field(default_factory=list)
 
 
 class Poromechanics:
@@ -220,8 +222,7 @@ class Poromechanics:
         if getattr(self.solver, "backend", None) == "block-amg":
             from ..solvers.block_contact import BlockPoroSolver
 
-            R = self.mech.block_solver().near_nullspace
-            self.solver = BlockPoroSolver(nfree, d, nl, near_nullspace=R)
+            self.solver = BlockPoroSolver(nfree, d, nl, self.mech.condensation(), near_nullspace=self.mech.rigid_modes())
 
     # ---- scaling and step coefficients ----------------------------------------------------
     def pressure_scale(self, dt: float) -> np.ndarray:
@@ -419,6 +420,7 @@ class Poromechanics:
         udir, p_dir, s = ctx[1], ctx[4], ctx[7]
         nfree, nl = mech.free.size, self.n_ff * d
         t1 = time.perf_counter()
+        k0 = len(getattr(self.solver, "iterations", []))
 
         def incr(dx, x):
             out = 0.0
@@ -435,6 +437,7 @@ class Poromechanics:
         c = final.counts
         info = StepInfo(res.iterations, res.residual, c.get("open", 0), c.get("stick", 0), c.get("slip", 0),
                         res.history, {"setup": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear})
+        info.linear_iterations = [int(k) for k in getattr(self.solver, "iterations", [])[k0:]]
         if energy:
             info.energy = step_energy(self, old, new)
         info.seconds["total"] = time.perf_counter() - t0
