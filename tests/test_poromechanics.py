@@ -263,3 +263,70 @@ def test_injection_opens_the_fracture_and_conserves_mass(dim, n, q):
     assert n_open[-1] > n_open[1]
     assert not check_energy(terms)
     assert max(abs(e.defect) / e.scale for e in terms) < 1e-11
+
+
+def test_jacobian_with_dilatancy_and_reference_traction():
+    """Dilatant aperture (tan ψ |[[u − u⁰]]_τ| in the fracture storage) and a reference traction
+    λ⁰: the Jacobian is still the derivative of the residual."""
+    P = shear_case(2, 8)
+    st = P.initial_state(1e5)
+    P.tan_psi[:] = np.tan(np.radians(20.0))
+    P.lam0 = 1e3 * P.mech.normal
+    st, _ = P.step(st, 10.0)
+    ctx, x0 = P.step_context(st, 10.0, 20.0)
+    x = x0 * (1 + 1e-3 * np.random.default_rng(0).standard_normal(x0.size))
+    lin = P._linearise(x, ctx)
+    assert np.any(lin.active_set == SLIP)
+    v = np.random.default_rng(1).standard_normal(x.size) * np.abs(x).mean()
+    eps = 1e-6
+    fd = (P._linearise(x + eps * v, ctx).residual - P._linearise(x - eps * v, ctx).residual) / (2 * eps)
+    Jv = lin.jacobian @ v
+    assert np.linalg.norm(fd - Jv) < 1e-6 * np.linalg.norm(Jv)
+    P.tan_psi[:] = 0.0
+    lin0 = P._linearise(x, ctx)
+    assert np.linalg.norm((lin.jacobian - lin0.jacobian) @ v) > 1e-6 * np.linalg.norm(Jv)   # the term is there
+
+
+def test_energy_identity_with_dilatancy():
+    """With shear dilation the identity still closes (the dilatant storage work is counted)."""
+    P = shear_case(2, 16)
+    st = P.initial_state(1e5)
+    P.tan_psi[:] = np.tan(np.radians(20.0))
+    terms = []
+    for _ in range(6):
+        st, info = P.step(st, 10.0)
+        terms.append(info.energy)
+    assert any(abs(e.dilatancy_work) > 1e-6 * e.scale for e in terms)
+    for e in terms:
+        assert abs(e.defect) < 1e-11 * e.scale, e.as_dict()
+    q, r = P.jumps(st.u), P.jumps(st.u) - P.jumps(P.u_ref)          # u⁰ = the initial state
+    qn = np.einsum("fi,fi->f", q, P.mech.normal)
+    slip = np.linalg.norm(r - np.einsum("fi,fi->f", r, P.mech.normal)[:, None] * P.mech.normal, axis=1)
+    assert slip.max() > 1e-6
+    assert np.allclose(st.aperture, P.closed_aperture - qn + P.tan_psi * slip, rtol=1e-12, atol=0)
+
+
+def test_reference_state_is_at_rest_without_loads():
+    """λ⁰ from an in-situ stress that satisfies the friction law and no load increment: the
+    step leaves u, slip and pressures unchanged (round-off); a stress violating it is refused."""
+    from polypore.core.errors import RunError
+
+    mu, lam = _lame(1e10, 0.2)
+    fm = FracturedMesh.build(_box(2, 8), _centre_fracture(2))
+    nc = fm.mesh.n_cells
+    md = MechanicsData(mu=np.full(nc, mu), lam=np.full(nc, lam), displacement=[DisplacementBC("ymin", (0, 1), ZERO)],
+                       contact=ContactSpec("coulomb", 0.5))
+    fd = FlowData(permeability=1e-15, viscosity=1e-3, biot_modulus=1e10, biot_coefficient=1.0, aperture=1e-4,
+                  normal_permeability=1e-15)
+    sigma0 = -np.array([[7e6, 2e6], [2e6, 1e7]])                    # total in-situ stress, Pa: |τ| < 0.5 σ_n
+    P = Poromechanics(fm, md, fd, {"xmin": Pressure(0.0)})
+    n = P.mech.normal
+    P.lam0 = -(n @ sigma0.T)                                        # λ⁰ = −σ⁰ n⁺ (reference p_f = 0)
+    st0 = P.reference_state(0.0)
+    st, info = P.step(st0, 10.0)
+    assert np.abs(st.u).max() < 1e-16 and info.slip == 0 and info.open == 0
+    assert np.abs(st.lam - P.lam0).max() < 1e-9 * 1e7
+    assert np.abs(st.p).max() < 1e-6
+    P.lam0 = -(n @ (-np.array([[7e6, 6e6], [6e6, 1e7]])).T)        # |τ| > 0.5 σ_n
+    with pytest.raises(RunError, match="not an equilibrium"):
+        P.reference_state(0.0)

@@ -14,8 +14,9 @@ D_viscous = Δt [Σ_K Σ_σ F_Kσ (p_K − p_σ) + Σ_σ Σ_e F_σe (p_f − p_e
 (with C_f, Λ_f at d_f^{n−1}), D_contact_n = Σ|σ| λ_n [[δu]]_n = −Σ|σ| λ_n^n [[u^{n−1}]]_n ≥ 0,
 D_numerical = ½ a(δu, δu) + ½ Σ|K| δp_K²/M + ½ Σ|σ| c_f d_f^{n−1} δp_f² ≥ 0 (implicit Euler),
 X_τ = Σ|σ| λ_τ·Δ[[u]]_τ − D_friction (= 0 at a solution of the contact law) and
-W = ℓ^n·δu (body force, tractions, σ⁰) + R^n·δu (Dirichlet reactions)
-  + Δt [Σ|K| h_m p_K + Σ|σ| h_f p_f − Σ_{∂Ω faces} F_Kσ p_σ − Σ_{∂Ω fracture ends} F_e p_e].
+W = ℓ^n·δu (body force, tractions, σ⁰, the reference traction λ⁰) + R^n·δu (Dirichlet reactions)
+  + Δt [Σ|K| h_m p_K + Σ|σ| h_f p_f − Σ_{∂Ω faces} F_Kσ p_σ − Σ_{∂Ω fracture ends} F_e p_e]
+  − Σ|σ| tan ψ p_f Δ|[[u − u⁰]]_τ| (dilatancy, C6; zero without it).
 
 Hence the estimate of the slides, ΔE + D_friction + D_viscous ≤ W. Everything here is
 recomputed from the states with the physical coupling, independently of the Newton residual,
@@ -58,11 +59,13 @@ class EnergyTerms:
     fluid_source_work: float
     fluid_boundary_work: float
     scale: float
+    dilatancy_work: float = 0.0
 
     @property
     def source_work(self) -> float:
-        """W: work of loads, Dirichlet reactions, fluid sources and boundary flow."""
-        return self.load_work + self.reaction_work + self.fluid_source_work + self.fluid_boundary_work
+        """W: work of loads, Dirichlet reactions, fluid sources, boundary flow and dilatancy."""
+        return (self.load_work + self.reaction_work + self.fluid_source_work + self.fluid_boundary_work
+                + self.dilatancy_work)
 
     @property
     def balance(self) -> float:
@@ -149,7 +152,7 @@ def step_energy(model, old, new) -> EnergyTerms:
         xt = float(np.sum(area * np.einsum("fi,fi->f", lt, dqt))) - fric
         scale += float(np.sum(area * (np.abs(ln * dqn) + np.linalg.norm(lt, axis=1) * slip + r * slip)))
     # -- mechanical work: loads at t^n on δu, Dirichlet reactions (physical coupling −G p)
-    F = mech.load_vector(t)
+    F = model.load_vector(t)
     Gp = model.G @ new.p
     Bl = mech.Bv.T @ new.lam.ravel()
     R = Au + Bl - Gp - F
@@ -188,8 +191,18 @@ def step_energy(model, old, new) -> EnergyTerms:
     scale += dt * float(np.abs(Fm) @ (np.abs(pK[rows]) + ap[dofs.slot]) + np.abs(Ff) @ (np.abs(pf[fe.rows_of_entries()])
                                                                                       + np.abs(pe[fe.values]))
                         + np.sum(ex[:, None] * jt * jt) + np.abs(hm) @ np.abs(pK) + np.abs(hf) @ np.abs(pf))
+    # -- dilatancy (C6): the storage term |σ| tan ψ Δ|[[u − u⁰]]_τ| of the flow rows has no
+    # counterpart in the equilibrium (the dilatant law is not derived from a potential), so its
+    # product with p_f is counted as work done on the fluid: W_dil = −Σ|σ| tan ψ p_f Δ|[[u − u⁰]]_τ|
+    dil_w = 0.0
+    if nf and np.any(model.tan_psi > 0):
+        rel1 = model._tangential_slip((mech.Jv @ u).reshape(nf, d))[0]
+        rel0 = model._tangential_slip((mech.Jv @ u0).reshape(nf, d))[0]
+        dil = mech.face_area * model.tan_psi * (rel1 - rel0) * pf
+        dil_w = -float(dil.sum())
+        scale += float(np.abs(dil).sum())
     return EnergyTerms(t, dt, elastic, storage, d_el, d_st, fric, v_m + v_f + v_x, v_m, v_f, v_x, cn, xt, num,
-                       load_w, reac_w, src_w, bnd_w, scale)
+                       load_w, reac_w, src_w, bnd_w, scale, dil_w)
 
 
 def check_energy(terms, rtol: float = 1e-9) -> list[str]:

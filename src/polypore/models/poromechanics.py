@@ -115,12 +115,20 @@ class Poromechanics:
     solver : LinearSolver, optional
         Default sparse direct (pardiso if installed, else SuperLU).
     newton : NewtonOptions, optional
+    initial_traction : (n_ff, d) array, optional
+        λ⁰ = −T⁺ of a reference (in-situ) state in equilibrium with loads that the run does not
+        apply again, Pa: the run then computes increments (u, p) from that state, the
+        contact law acts on the total λ and the equilibrium on λ − λ⁰.
+    dilatancy : float or (n_ff,) array
+        tan ψ of the dilatant aperture d_f = d_f^c − [[u]]_n + tan ψ |[[u − u⁰]]_τ| (C6),
+        in the fracture storage (linearised in Newton) and, lagged, in the conductivities.
     """
 
     def __init__(self, fm: FracturedMesh, mech_data: MechanicsData, flow_data: FlowData,
                  flow_boundary: Mapping | None = None, *, fracture_boundary: Mapping | None = None,
                  cell_source=0.0, fracture_source=0.0, alpha=None, fracture_alpha=None,
-                 solver: LinearSolver | None = None, newton: NewtonOptions | None = None):
+                 solver: LinearSolver | None = None, newton: NewtonOptions | None = None,
+                 initial_traction=None, dilatancy=0.0):
         t0 = time.perf_counter()
         if mech_data.matrix_pressure is not None or mech_data.fracture_pressure is not None:
             raise InputError("mechanics.pressure", "the coupled model computes p_m and p_f: leave "
@@ -138,6 +146,16 @@ class Poromechanics:
         self.n_ff = fm.network.n_faces
         self.biot = float(flow_data.biot_coefficient)
         self.closed_aperture = self.flow.aperture0              # d_f^c (n_ff,), m
+        nf, d = fm.network.n_faces, fm.mesh.dim
+        lam0 = np.zeros((nf, d)) if initial_traction is None else np.asarray(initial_traction, float)
+        if lam0.shape != (nf, d) or not np.all(np.isfinite(lam0)):
+            raise InputError("initial_traction", f"expected finite values of shape ({nf}, {d}) (Pa), got {lam0.shape}")
+        self.lam0 = lam0                                        # λ⁰ = −T⁺ of the reference state, Pa
+        tpsi = np.broadcast_to(np.asarray(dilatancy, float), (nf,)).copy()
+        if not np.all((tpsi >= 0) & np.isfinite(tpsi)):
+            raise InputError("flow.dilatancy", "tan ψ must be finite and ≥ 0")
+        self.tan_psi = tpsi                                     # tan ψ (n_ff,), dimensionless
+        self.u_ref = None                                       # u⁰ of the dilatancy law, set by initial_state
         self.asm = self.flow.assembler
         self.dofs = self.asm.dofs
         self.n_flow = self.dofs.n + fm.mesh.n_cells
@@ -214,6 +232,13 @@ class Poromechanics:
                                po + ar])
         allc = np.concatenate([A.col, nfree + Bt.col, fcol[keep], nfree + lc.ravel(), po + Gc.col, Gc.row,
                                po + ac])
+        # dilatancy: ∂(|σ| tan ψ |[[u − u⁰]]_τ|)/∂u in the fracture-pressure rows, one entry per
+        # (jump nonzero, component) whose row and column are unknowns
+        frow = self.flow_free_index[self.dofs.frac[J.row]] if nf else np.zeros(0, np.int64)
+        dkeep = keep[:, 0, :] & (frow[:, None] >= 0)                  # (nnz, d): one row per face
+        self._dil = (J.row, J.data, dkeep)
+        allr = np.concatenate([allr, po + np.broadcast_to(frow[:, None], dkeep.shape)[dkeep]])
+        allc = np.concatenate([allc, fcol[:, 0, :][dkeep]])
         n = po + npf
         self.pattern = Pattern.build(allr, allc, (n, n))
         self._a_vals = A.data
@@ -240,7 +265,7 @@ class Poromechanics:
         h = float(np.mean(g.cell_volume ** (1.0 / self.dim)))
         k = float(np.mean(np.trace(self.flow.permeability, axis1=1, axis2=2))) / self.dim / self.flow.viscosity
         diff = Em * dt * k / h ** 2
-        s_cell = Em / (h * np.sqrt(max(self.biot ** 2 + Em / self.flow.biot_modulus + diff, 1e-300)))
+        s_cell = Em / (h * np.sqrt(max(self.biot ** 2 + Em * float(np.mean(1.0 / np.asarray(self.flow.biot_modulus))) + diff, 1e-300)))
         s_face = Em / (h * np.sqrt(max(diff, 1e-300)))
         s = np.full(self.n_flow, s_face)
         s[self.dofs.n:] = s_cell
@@ -287,16 +312,38 @@ class Poromechanics:
         p_dir[ids] = vals
         return A_dt, r * dt, p_dir
 
+    def load_vector(self, t: float) -> np.ndarray:
+        """(n_dofs,) ℓ(t) + Σ_σ |σ| λ⁰·[[v]]_σ: the loads of the increment problem, N (N/m in 2D).
+
+        With λ⁰ the reference traction, the equilibrium reads A u + Bᵀ(λ − λ⁰) − G p = ℓ."""
+        F = self.mech.load_vector(t)
+        if self.n_ff and np.any(self.lam0):
+            F = F + self.mech.Bv.T @ self.lam0.ravel()
+        return F
+
+    def _tangential_slip(self, q: np.ndarray):
+        """(|[[u − u⁰]]_τ| (n_ff,), unit direction (n_ff, d), 0 where there is no slip) from jumps q."""
+        n = self.mech.normal
+        q_ref = self.jumps(self.u_ref) if self.u_ref is not None else 0.0
+        r = q - q_ref
+        rt = r - np.einsum("fi,fi->f", r, n)[:, None] * n
+        mag = np.linalg.norm(rt, axis=1)
+        return mag, np.where(mag[:, None] > 0, rt / np.where(mag > 0, mag, 1.0)[:, None], 0.0)
+
     # ---- states ----------------------------------------------------------------------------
     def jumps(self, u: np.ndarray) -> np.ndarray:
         """(n_ff, d) mean jumps [[u]]_σ, m."""
         return self.mech.jump_scalar @ u
 
     def aperture_of(self, u: np.ndarray) -> np.ndarray:
-        """(n_ff,) d_f = d_f^c − [[u]]_n (scheme.md §1), m."""
+        """(n_ff,) d_f = d_f^c − [[u]]_n + tan ψ |[[u − u⁰]]_τ| (scheme.md §1, C6), m."""
         if not self.n_ff:
             return np.zeros(0)
-        return self.closed_aperture - np.einsum("fi,fi->f", self.jumps(u), self.mech.normal)
+        q = self.jumps(u)
+        d_f = self.closed_aperture - np.einsum("fi,fi->f", q, self.mech.normal)
+        if np.any(self.tan_psi > 0):
+            d_f = d_f + self.tan_psi * self._tangential_slip(q)[0]
+        return d_f
 
     def initial_state(self, p0, u0=None, t0: float = 0.0, verbose: bool = False) -> PoroState:
         """State at t0 with every pressure from ``p0`` (number or f(x, y, z, t)).
@@ -310,7 +357,7 @@ class Poromechanics:
         mech = self.mech
         d = self.dim
         if u0 is None:
-            F = mech.load_vector(t0) + self.G @ p
+            F = self.load_vector(t0) + self.G @ p
             udir = mech.dirichlet_vector(t0)
             nfree = mech.free.size
             x0 = np.zeros(nfree + self.n_ff * d)
@@ -327,7 +374,32 @@ class Poromechanics:
             u = np.asarray(mech.interpolate(u0, t0) if callable(u0) else u0, float).reshape(-1, d)
             lam = np.zeros((self.n_ff, d))
             state = np.full(self.n_ff, OPEN, np.int8)
+        self.u_ref = u.copy()
         return PoroState(float(t0), u, lam, p, self.aperture_of(u), np.asarray(state, np.int8))
+
+    def reference_state(self, p0, t0: float = 0.0) -> PoroState:
+        """The reference (in-situ) state itself: u = Dirichlet values, λ = λ⁰, pressures from p0
+        (Pa, relative to the reference pressure). Raises RunError if λ⁰ violates the contact
+        law (the reference state would not be an equilibrium)."""
+        from ..core.errors import RunError
+
+        sol = self.flow.initial_state(p0, t0)
+        p = self.pressure_vector(sol)
+        mech, d = self.mech, self.dim
+        u = mech.dirichlet_vector(t0).reshape(-1, d)
+        self.u_ref = u.copy()
+        zero = np.zeros((self.n_ff, d))
+        state = linearise_contact(mech.law, self.lam0, zero, zero, mech.normal, mech.face_area)[3]
+        if self.n_ff:
+            ln = np.einsum("fi,fi->f", self.lam0, mech.normal)
+            lt = np.linalg.norm(self.lam0 - ln[:, None] * mech.normal, axis=1)
+            bad = (state == SLIP) | ((state == OPEN) & (np.abs(self.lam0).max(axis=1) > 0))
+            if np.any(bad):
+                raise RunError(f"the reference stress is not an equilibrium of the contact law on {int(bad.sum())} "
+                               f"fracture face(s): tension or |λ_τ| > F λ_n (largest |λ_τ| / λ_n = "
+                               f"{float(np.max(lt[bad] / np.maximum(ln[bad], 1e-300))):.3g}); lower the stress "
+                               "ratio's deviation or raise the friction")
+        return PoroState(float(t0), u, self.lam0.copy(), p, self.aperture_of(u), np.asarray(state, np.int8))
 
     def pressure_vector(self, sol: FlowSolution) -> np.ndarray:
         """(n_flow,) the unknown vector of a FlowSolution (FlowDofs order, then cells)."""
@@ -365,11 +437,21 @@ class Poromechanics:
         Gdu = self.GT @ (u - u_old)
         Ap = A_dt @ p
         Rf = Ap - r_dt + Gdu
+        dil_vals = np.zeros(0)
+        if nf and np.any(self.tan_psi > 0):
+            rel, that = self._tangential_slip(q)
+            w = mech.face_area * self.tan_psi
+            Rf[self.dofs.frac] += w * (rel - self._tangential_slip(q_old)[0])
+            jrow_, jval_, dkeep = self._dil
+            dil = (s[self.dofs.frac[jrow_]] * w[jrow_] * jval_)[:, None] * that[jrow_]   # (nnz, d)
+            dil_vals = -dil[dkeep]
+        elif nf:
+            dil_vals = np.zeros(int(self._dil[2].sum()))
         b = mech.law.beta
         jrow, jval, keep = self._cu
         cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
         vals = np.concatenate([self._a_vals, self._bt_vals, cu, (dC_dlam * (b * b)[:, None, None]).ravel(),
-                               -cs * g_vals, -g_vals, -af_vals])
+                               -cs * g_vals, -g_vals, -af_vals, dil_vals])
         Jac = self.pattern.fill(vals)
         free, ff = mech.free, self.flow_free
         su = max(np.linalg.norm(F), np.linalg.norm(mech.A @ u), np.linalg.norm(mech.Bv.T @ lam.ravel()),
@@ -390,7 +472,7 @@ class Poromechanics:
         (the old state with the new Dirichlet data). ``self._linearise(x, ctx)`` is the
         residual and Jacobian at x."""
         mech, d = self.mech, self.dim
-        F = mech.load_vector(t)
+        F = self.load_vector(t)
         udir = mech.dirichlet_vector(t)
         A_dt, r_dt, p_dir = self.flow_step_system(old, dt, t)
         s = self.pressure_scale(dt)
