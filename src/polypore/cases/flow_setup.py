@@ -7,8 +7,13 @@ Schema (SI units; every value may be a number or an expression, see below)::
                                      # a d×d matrix [[kxx, kxy], [kxy, kyy]] (numbers/expressions),
                                      # or a table by region: {reservoir = 1e-13, caprock = 1e-19}
     viscosity = 1e-3                 # η (Pa·s) > 0
-    biot_modulus = 1e10              # M (Pa) > 0, or "inf" (no matrix storage; the default)
+    biot_modulus = 1e10              # M (Pa) > 0, or "inf" (no matrix storage; the default),
+                                     # or a table by region
+    # porosity = {reservoir = 0.1, caprock = 0.01}   # instead of biot_modulus: 1/M = φ c_w
+    # fluid_compressibility = 4.4e-10                # c_w (1/Pa), with porosity
     fracture_compressibility = 0.0   # c_f (1/Pa) ≥ 0
+    dilatancy_angle = 0.0            # ψ (degrees) of d_f = d_f^c − [[u]]_n + tan ψ |[[u − u⁰]]_τ|
+                                     # (poromechanics)
     aperture = 1e-4                  # d_f (m) > 0: expression of x, y, z, t, D, L
     normal_permeability = 1e-15      # K_fn (m²) > 0: expression of x, y, z, D, L
     fracture_conductivity = "d**3/12"  # C_f (m³): expression of the aperture d (and x, y, z, D, L)
@@ -170,6 +175,55 @@ def _permeability(sec: Section, mesh, params) -> np.ndarray:
     return K
 
 
+def _by_region(sec: Section, key: str, mesh, check) -> np.ndarray | None:
+    """(n_cells,) values of a key given as a number or a table by region, None if absent."""
+    value = sec.raw(key, None)
+    if value is None:
+        return None
+    if not isinstance(value, dict):
+        return np.full(mesh.n_cells, check(value, sec.field(key)))
+    out = np.full(mesh.n_cells, np.nan)
+    for name, v in value.items():
+        f = sec.field(f"{key}.{name}")
+        if name not in mesh.region_names:
+            raise InputError(f, f"unknown region {name!r}; the mesh has {', '.join(mesh.region_names)}")
+        out[mesh.cell_region == mesh.region_names.index(name)] = check(v, f)
+    if np.isnan(out).any():
+        missing = sorted({mesh.region_names[i] for i in np.unique(mesh.cell_region[np.isnan(out)])})
+        raise InputError(sec.field(key), f"no value for region(s) {', '.join(missing)}")
+    return out
+
+
+def _storage(sec: Section, mesh):
+    """M (Pa): a number, "inf", a table by region, or from porosity φ and fluid compressibility
+    c_w as 1/M = φ c_w (incompressible grains, b = 1: the Choice of C6)."""
+
+    def modulus(v, f):
+        if isinstance(v, str) and v.strip().lower() in ("inf", "infinity"):
+            return np.inf
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
+            raise InputError(f, f"must be a positive number (Pa) or \"inf\" (no storage), got {v!r}")
+        return float(v)
+
+    def porosity(v, f):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not 0 < v <= 1:
+            raise InputError(f, f"must be a number in (0, 1], got {v!r}")
+        return float(v)
+
+    if sec.has("porosity"):
+        if sec.has("biot_modulus"):
+            raise InputError(sec.field("porosity"), "give either biot_modulus or porosity (with "
+                             "fluid_compressibility), not both")
+        cw = sec.number("fluid_compressibility", None, positive=True)
+        if cw is None:
+            raise InputError(sec.field("fluid_compressibility"), "is required with porosity (1/Pa)")
+        return 1.0 / (_by_region(sec, "porosity", mesh, porosity) * cw)
+    M = _by_region(sec, "biot_modulus", mesh, modulus)
+    if M is None:
+        return np.inf
+    return float(M[0]) if np.all(M == M[0]) else M
+
+
 def _positive_or_inf(sec: Section, key: str, default) -> float:
     v = sec.raw(key, default)
     if isinstance(v, str) and v.strip().lower() in ("inf", "infinity"):
@@ -206,8 +260,11 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
     eta = sec.raw("viscosity", 1e-3)
     if isinstance(eta, bool) or not isinstance(eta, (int, float)) or not (0 < eta < np.inf):
         raise InputError(sec.field("viscosity"), f"must be a positive number (Pa·s), got {eta!r}")
-    M = _positive_or_inf(sec, "biot_modulus", "inf")
+    M = _storage(sec, mesh)
     cf = sec.number("fracture_compressibility", 0.0, nonneg=True)
+    psi = sec.number("dilatancy_angle", 0.0, nonneg=True)
+    if not psi < 90:
+        raise InputError(sec.field("dilatancy_angle"), f"must be an angle in [0, 90) degrees, got {psi!r}")
     fvars = fracture_variables(fm)
     xf = mesh.geometry.face_centroid[net.faces]
 
@@ -346,7 +403,7 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
     sec.done()
     has_pressure = any(v == "exact" or isinstance(v, Pressure) for v in boundary.values()) or any(
         isinstance(v, Pressure) for v in fracture_boundary.values())
-    no_storage = not np.isfinite(M) and cf == 0
+    no_storage = not np.any(np.isfinite(M)) and cf == 0
     if not has_pressure and (steady or no_storage):
         raise InputError("flow.boundary", "no boundary part has a pressure condition, so the pressure is only "
                          "defined up to a constant" + (" (a steady problem)" if steady else " (no storage: "
@@ -372,7 +429,7 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
             fracture_source = exact.h_f(xf, on1)
     return FlowSetup(fm, data, boundary, fracture_boundary, cell_source, fracture_source,
                      LinearSolver(backend, symmetric=True, rtol=rtol), schedule, initial, alpha, falpha, exact, on1,
-                     {"fracture_variables": fvars})
+                     {"fracture_variables": fvars, "tan_psi": float(np.tan(np.radians(psi)))})
 
 
 def _exact(name, fm, data: FlowData, K, ap, cols, fvars):

@@ -29,6 +29,12 @@ Schema (all lengths in m)::
     name = "reservoir"
     lower = [...]
     upper = [...]
+
+    [[boundaries]]                  # optional extra boundary parts: the faces of part `on` whose
+    name = "injection"              # centroid lies in the box (e.g. the reservoir's face on xmin)
+    on = "xmin"
+    lower = [...]
+    upper = [...]
 """
 
 from __future__ import annotations
@@ -41,7 +47,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..mesh import FracturedMesh, FractureSpec
-from ..mesh.mesh import with_regions
+from ..mesh.mesh import with_boundary_parts, with_regions
 from .casefile import CaseFile, Section
 
 log = logging.getLogger("polypore")
@@ -127,6 +133,31 @@ def _interfaces(regions, lower, upper) -> list[FractureSpec]:
     return list(uniq.values())
 
 
+def _boundary_parts(root: Section, fm: FracturedMesh) -> FracturedMesh:
+    mesh = fm.mesh
+    parts = {}
+    for sec in root.sections("boundaries"):
+        name = sec.string("name")
+        if name in mesh.boundary or name in parts:
+            raise InputError(sec.field("name"), f"boundary part {name!r} exists already; choose another name")
+        on = sec.string("on")
+        if on not in mesh.boundary:
+            raise InputError(sec.field("on"), f"unknown boundary part {on!r}; this mesh has {sorted(mesh.boundary)}")
+        lo = np.asarray(sec.vector("lower", mesh.dim))
+        hi = np.asarray(sec.vector("upper", mesh.dim))
+        faces = mesh.boundary[on]
+        c = mesh.geometry.face_centroid[faces]
+        sel = faces[np.all((c >= lo) & (c <= hi), axis=1)]
+        if sel.size == 0:
+            raise InputError(sec.field("lower"), f"no face of {on!r} has its centroid in the box {lo.tolist()} – "
+                             f"{hi.tolist()}")
+        parts[name] = sel
+        sec.done()
+    if not parts:
+        return fm
+    return FracturedMesh(with_boundary_parts(mesh, parts), fm.network, fm.sides)
+
+
 def _assign_regions(fm: FracturedMesh, regions, field="regions") -> FracturedMesh:
     mesh = fm.mesh
     c = mesh.geometry.cell_centroid
@@ -184,7 +215,7 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
         regions = _regions(root, dim)
         if regions:
             fm = _assign_regions(fm, regions)
-        return fm
+        return _boundary_parts(root, fm)
 
     lower = np.asarray(sec.vector("lower"))
     dim = lower.size
@@ -252,4 +283,4 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
              fm.sides.n_sides, time.perf_counter() - t1)
     if regions:
         fm = _assign_regions(fm, regions)
-    return fm
+    return _boundary_parts(root, fm)

@@ -252,3 +252,18 @@ def with_regions(mesh: Mesh, cell_region: np.ndarray, region_names) -> Mesh:
     if cell_region.size and (cell_region.min() < 0 or cell_region.max() >= len(region_names)):
         raise MeshError("mesh.regions", "region tags must index region_names")
     return dataclasses.replace(mesh, cell_region=frozen(cell_region), region_names=tuple(region_names))
+
+
+def with_boundary_parts(mesh: Mesh, parts: Mapping[str, np.ndarray]) -> Mesh:
+    """The same mesh with extra named boundary parts (faces on ∂Ω, int32 ids)."""
+    import dataclasses
+
+    b = dict(mesh.boundary)
+    bset = np.zeros(mesh.n_faces, bool)
+    bset[mesh.boundary_faces] = True
+    for name, faces in parts.items():
+        faces = np.asarray(faces, dtype=INDEX)
+        if faces.size and (faces.min() < 0 or faces.max() >= mesh.n_faces or not bset[faces].all()):
+            raise MeshError(f"boundaries.{name}", "a boundary part must consist of faces on ∂Ω")
+        b[name] = frozen(faces)
+    return dataclasses.replace(mesh, boundary=MappingProxyType(b))

@@ -93,7 +93,7 @@ def state_energy(model, st) -> tuple[float, float]:
     u = st.u.ravel()
     vol = model.fm.mesh.geometry.cell_volume
     pK = st.p[model.dofs.n:]
-    return 0.5 * float(u @ (model.mech.A @ u)), 0.5 * float(np.sum(vol * pK * pK) / model.flow.biot_modulus)
+    return 0.5 * float(u @ (model.mech.A @ u)), 0.5 * float(np.sum(vol * pK * pK / model.flow.biot_modulus))
 
 
 def step_energy(model, old, new) -> EnergyTerms:
@@ -118,13 +118,12 @@ def step_energy(model, old, new) -> EnergyTerms:
     d_el = 0.5 * float(du @ (Au + A @ u0))
     num = 0.5 * float(du @ Adu)
     # -- storage (matrix, and fracture compressibility with the step's coefficient d_f^{n−1})
-    M = model.flow.biot_modulus
-    vol = g.cell_volume
+    vol = g.cell_volume / model.flow.biot_modulus               # |K|/M, per cell (layered storage)
     pK, pK0 = new.p[dofs.n:], old.p[dofs.n:]
-    storage = 0.5 * float(np.sum(vol * pK * pK) / M)
-    d_st = 0.5 * float(np.sum(vol * (pK - pK0) * (pK + pK0)) / M)
-    num += 0.5 * float(np.sum(vol * (pK - pK0) ** 2) / M)
-    scale = abs(elastic) + 0.5 * abs(float(u0 @ (A @ u0))) + abs(num) + float(np.sum(vol * (pK * pK + pK0 * pK0)) / M)
+    storage = 0.5 * float(np.sum(vol * pK * pK))
+    d_st = 0.5 * float(np.sum(vol * (pK - pK0) * (pK + pK0)))
+    num += 0.5 * float(np.sum(vol * (pK - pK0) ** 2))
+    scale = abs(elastic) + 0.5 * abs(float(u0 @ (A @ u0))) + abs(num) + float(np.sum(vol * (pK * pK + pK0 * pK0)))
     cf = float(model.flow.data.fracture_compressibility)
     pf, pf0 = new.p[dofs.frac], old.p[dofs.frac]
     if cf > 0 and nf:

@@ -52,7 +52,7 @@ class FlowData:
         Matrix permeability K_m in m², symmetric positive definite.
     viscosity : float
         Dynamic viscosity η in Pa·s (> 0).
-    biot_modulus : float
+    biot_modulus : float or (n_cells,) array
         Biot modulus M in Pa (> 0); ``inf`` (default) means no matrix storage.
     biot_coefficient : float
         Biot coefficient b (dimensionless, ≥ 0); used by the poromechanics coupling.
@@ -230,7 +230,14 @@ class FlowModel:
         self.network = net = fmesh.network
         self.data = data
         self.viscosity = _positive(data.viscosity, "flow.viscosity")
-        self.biot_modulus = _positive(data.biot_modulus, "flow.biot_modulus", allow_inf=True)
+        M = np.asarray(data.biot_modulus, float)
+        if M.ndim == 0:
+            self.biot_modulus = _positive(data.biot_modulus, "flow.biot_modulus", allow_inf=True)
+        elif M.shape == (mesh.n_cells,) and np.all(M > 0):
+            self.biot_modulus = M                               # per cell (layered storage), Pa
+        else:
+            raise InputError("flow.biot_modulus", f"expected a positive number or one per cell ({mesh.n_cells}), "
+                             f"got shape {M.shape}")
         b = float(data.biot_coefficient)
         if not (b >= 0 and np.isfinite(b)):
             raise InputError("flow.biot_coefficient", f"must be a finite number ≥ 0, got {data.biot_coefficient!r}")

@@ -265,7 +265,8 @@ class Poromechanics:
         h = float(np.mean(g.cell_volume ** (1.0 / self.dim)))
         k = float(np.mean(np.trace(self.flow.permeability, axis1=1, axis2=2))) / self.dim / self.flow.viscosity
         diff = Em * dt * k / h ** 2
-        s_cell = Em / (h * np.sqrt(max(self.biot ** 2 + Em * float(np.mean(1.0 / np.asarray(self.flow.biot_modulus))) + diff, 1e-300)))
+        inv_m = float(np.mean(1.0 / np.asarray(self.flow.biot_modulus)))
+        s_cell = Em / (h * np.sqrt(max(self.biot ** 2 + Em * inv_m + diff, 1e-300)))
         s_face = Em / (h * np.sqrt(max(diff, 1e-300)))
         s = np.full(self.n_flow, s_face)
         s[self.dofs.n:] = s_cell
@@ -322,13 +323,19 @@ class Poromechanics:
         return F
 
     def _tangential_slip(self, q: np.ndarray):
-        """(|[[u − u⁰]]_τ| (n_ff,), unit direction (n_ff, d), 0 where there is no slip) from jumps q."""
+        """(|[[u − u⁰]]_ε,τ| (n_ff,), its derivative direction (n_ff, d)) from the jumps q (n_ff, d), m.
+
+        |x|_ε = √(|x|² + ε²) − ε with ε = 10⁻³ d_f^c: the plain norm's derivative x/|x| is a
+        unit vector of arbitrary direction on a face that has not slipped (x at round-off),
+        and Newton then cycles between stick and slip where dilatancy hardening holds a face at
+        the Coulomb limit (C6, at slip onset). The aperture differs by at most ε tan ψ."""
         n = self.mech.normal
         q_ref = self.jumps(self.u_ref) if self.u_ref is not None else 0.0
         r = q - q_ref
         rt = r - np.einsum("fi,fi->f", r, n)[:, None] * n
-        mag = np.linalg.norm(rt, axis=1)
-        return mag, np.where(mag[:, None] > 0, rt / np.where(mag > 0, mag, 1.0)[:, None], 0.0)
+        eps = 1e-3 * self.closed_aperture
+        root = np.sqrt(np.einsum("fi,fi->f", rt, rt) + eps * eps)
+        return root - eps, rt / root[:, None]
 
     # ---- states ----------------------------------------------------------------------------
     def jumps(self, u: np.ndarray) -> np.ndarray:
