@@ -1,0 +1,73 @@
+"""Case C6 (fault reactivation by injection): the in-situ reference state is an equilibrium,
+injection reactivates the fault where it crosses the reservoir, and bad input exits 2."""
+
+import numpy as np
+import pytest
+
+from polypore.cases.casefile import load_case
+from polypore.cases.meshing import build_fractured_mesh
+from polypore.cases.poro_run import poro_setup
+from polypore.cli import main
+
+COARSE = ["mesh.size=200", "mesh.fracture_size=80"]
+
+
+def _model(*overrides):
+    case = load_case("fault-injection", [*COARSE, *overrides])
+    fm = build_fractured_mesh(case)
+    model, fs, _ = poro_setup(case, fm)
+    return model, fs
+
+
+def test_reference_state_is_an_equilibrium_without_injection():
+    """No injection: every step leaves displacement increments, slip and overpressure at
+    round-off; the fault carries the in-situ effective traction and sticks."""
+    model, fs = _model("parameters.rate=0.0")
+    st0 = model.reference_state(fs.initial_pressure)
+    ln = np.einsum("fi,fi->f", st0.lam, model.mech.normal)
+    assert np.all(ln > 1e6)                                    # effectively compressed (Pa)
+    st = st0
+    for _ in range(3):
+        st, info = model.step(st, 432000.0)
+        assert info.slip == 0 and info.open == 0
+    assert np.abs(st.u).max() < 1e-14                          # m (displacements of the injection run: ~1e-2)
+    assert np.abs(st.p).max() < 1e-6                           # Pa
+    assert np.abs(st.lam - st0.lam).max() < 1e-9 * np.abs(st0.lam).max()
+
+
+def test_injection_reactivates_the_fault_in_the_reservoir():
+    """Coarse run: slip starts on faces at reservoir depth; before, the fault sticks everywhere."""
+    model, fs = _model()
+    st = model.reference_state(fs.initial_pressure)
+    depth = -model.fm.mesh.geometry.face_centroid[model.fm.network.faces][:, 1]
+    first = None
+    for _ in range(45):
+        st, info = model.step(st, 432000.0)
+        if info.slip and first is None:
+            first = st.state == 2
+            break
+    assert first is not None, "no slip within 225 days"
+    assert np.all((depth[first] > 1350) & (depth[first] < 1650)), depth[first]
+
+
+def run(capsys, *argv):
+    code = main(list(argv))
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("overrides,field,msg", [
+    (["initial_state.stress_ratio=0"], "initial_state.stress_ratio", "(0, ∞)"),
+    (["initial_state.stress_ratio=-0.7"], "initial_state.stress_ratio", "(0, ∞)"),
+    (["regions.upper_aquifer.lower=[0.0, -1200.0]"], "regions", "do not cover the domain"),
+    (["flow.boundary.injection.name=nowhere"], "flow.boundary.nowhere.name", "unknown boundary"),
+    (["boundaries.injection.on=west"], "boundaries.injection.on", "unknown boundary part"),
+    (["flow.porosity.reservoir=1.5"], "flow.porosity.reservoir", "(0, 1]"),
+    (["initial_state.surface=-1000"], "initial_state.surface", "depth must be ≥ 0"),
+    (["initial_state.stress_ratio=0.3"], "initial_state", "not an equilibrium"),
+])
+def test_bad_fault_injection_input(tmp_path, capsys, overrides, field, msg):
+    args = [a for o in [*COARSE, *overrides] for a in ("--set", o)]
+    code, err = run(capsys, "run", "fault-injection", "--out", str(tmp_path / "x"), *args)
+    assert code == 2, err
+    assert f"error: {field}" in err and msg in err, err
+    assert not (tmp_path / "x" / "summary.json").exists()
