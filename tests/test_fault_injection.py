@@ -35,19 +35,27 @@ def test_reference_state_is_an_equilibrium_without_injection():
     assert np.abs(st.lam - st0.lam).max() < 1e-9 * np.abs(st0.lam).max()
 
 
-def test_injection_reactivates_the_fault_in_the_reservoir():
-    """Coarse run: slip starts on faces at reservoir depth; before, the fault sticks everywhere."""
-    model, fs = _model()
-    st = model.reference_state(fs.initial_pressure)
-    depth = -model.fm.mesh.geometry.face_centroid[model.fm.network.faces][:, 1]
-    first = None
-    for _ in range(45):
-        st, info = model.step(st, 432000.0)
-        if info.slip and first is None:
-            first = st.state == 2
-            break
-    assert first is not None, "no slip within 225 days"
-    assert np.all((depth[first] > 1350) & (depth[first] < 1650)), depth[first]
+def test_injection_run_reactivates_the_fault_in_the_reservoir(tmp_path, capsys):
+    """Coarse `polypore run fault-injection`: slip starts on faces at reservoir depth after the
+    pressure has risen, spreads, and every C6 output is written; no energy violation."""
+    import json
+
+    out = tmp_path / "c6"
+    code, err = run(capsys, "run", "fault-injection", "--out", str(out), *[a for o in COARSE for a in ("--set", o)])
+    assert code == 0, err
+    s = json.loads((out / "summary.json").read_text())
+    on = s["slip_onset"]
+    assert on is not None and 50 * 86400 < on["time"] < 250 * 86400
+    depth = -np.array(on["first_slipping_faces"])[:, 1]
+    assert np.all((depth > 1350) & (depth < 1650)), depth
+    m = s["monitor"]
+    assert m["overpressure_at_points"]["injection"][-1] > 5e6
+    slip = np.array(m["max_slip"]["fault"])
+    assert slip[-1] > 10 * slip[np.searchsorted(m["time"], on["time"])] > 0      # grows after onset
+    assert s["steps"][-1]["slip"] > on["faces"]                                   # spreads
+    assert s["energy_check"]["violations"] == []
+    for name in ("monitor.png", "slip_profiles.png", "overpressure.png", "solution.pvd", "fractures.csv"):
+        assert (out / name).stat().st_size > 0
 
 
 def run(capsys, *argv):

@@ -21,10 +21,10 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError, RunError
 from ..io.atomic import atomic_write_text
-from ..io.plots import poro_plots
+from ..io.plots import monitor_plots, poro_plots
 from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
 from ..io.vtu import write_bulk_vtu, write_fracture_vtu, write_pvd
-from ..models.contact import STATE_NAMES
+from ..models.contact import SLIP, STATE_NAMES
 from ..models.energy import check_energy
 from ..models.fracture_geometry import arc_length
 from ..models.poromechanics import Poromechanics
@@ -62,9 +62,9 @@ def poro_setup(case: CaseFile, fm):
                          "biot_modulus, aperture, normal_permeability, boundary conditions)")
     if "time" not in case.data:
         raise InputError("time", "a poromechanics case is transient: give [time] with end and step (s)")
-    mech_case = _sub_case(case, ("flow", "time", "model", "initial_state"), MECH_SOLVER_KEYS)
-    flow_case = _sub_case(case, ("mechanics", "material", "materials", "contact", "model", "initial_state"),
-                          FLOW_SOLVER_KEYS)
+    mech_case = _sub_case(case, ("flow", "time", "model", "initial_state", "monitor"), MECH_SOLVER_KEYS)
+    flow_case = _sub_case(case, ("mechanics", "material", "materials", "contact", "model", "initial_state",
+                                 "monitor"), FLOW_SOLVER_KEYS)
     ms = mechanics_setup(mech_case, fm)
     fs = flow_setup(flow_case, fm)
     if fs.initial_pressure is None:
@@ -150,6 +150,31 @@ def reference_state(case: CaseFile, fm) -> ReferenceState | None:
     return ReferenceState(float(g), float(rr), float(rw), float(k), float(surface), float(ps))
 
 
+def monitor_points(case: CaseFile, mesh) -> dict:
+    """``[monitor] points = {name = [x, y(, z)]}``: name -> the cell whose centroid is nearest."""
+    root = case.root()
+    if not root.has("monitor"):
+        return {}
+    sec = root.section("monitor")
+    pts = sec.raw("points", {})
+    if not isinstance(pts, dict):
+        raise InputError(sec.field("points"), "must be a table name = [x, y(, z)] (m)")
+    out = {}
+    c = mesh.geometry.cell_centroid
+    lo, hi = mesh.bounding_box
+    for name, x in pts.items():
+        f = sec.field(f"points.{name}")
+        try:
+            x = np.asarray(x, float).reshape(mesh.dim)
+        except (TypeError, ValueError):
+            raise InputError(f, f"must be {mesh.dim} coordinates (m), got {x!r}") from None
+        if np.any(x < lo - 1e-9 * np.abs(hi - lo)) or np.any(x > hi + 1e-9 * np.abs(hi - lo)):
+            raise InputError(f, f"lies outside the domain {lo.tolist()} – {hi.tolist()}")
+        out[name] = int(np.argmin(np.linalg.norm(c - x, axis=1)))
+    sec.done()
+    return out
+
+
 def run_poromechanics(case: CaseFile, out: Path) -> dict:
     t_start = time.perf_counter()
     fm = build_fractured_mesh(case)
@@ -170,6 +195,17 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             raise InputError("initial_state", str(exc)) from None
         p_ref = ref.pressure(g.cell_centroid)                  # outputs: absolute pressure = p_h + p
     p0 = model.cell_pressure(state).copy()
+    points = monitor_points(case, mesh)
+    q_start = model.jumps(state.u)
+    n_hat = model.mech.normal
+
+    def slip_since_start(st):
+        r = model.jumps(st.u) - q_start
+        return np.linalg.norm(r - np.einsum("fi,fi->f", r, n_hat)[:, None] * n_hat, axis=1)
+
+    monitor = {"time": [], "points": {k: [] for k in points}, "fault_p": {k: [] for k in net.names},
+               "fault_slip": {k: [] for k in net.names}}
+    onset = {}
     log.info("initial state at t = %g s: %d open, %d stick, %d slip faces (%.2f s)", schedule.start,
              int(np.sum(state.state == 0)), int(np.sum(state.state == 1)), int(np.sum(state.state == 2)),
              time.perf_counter() - t0)
@@ -197,7 +233,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                                         [STATE_NAMES[k] for k in fq["state"]], fq["aperture"], fq["p_f"]))
             snapshots.append({"time": st.time, "overpressure": p - p0, "state": fq["state"].copy(),
                               "lambda_n": fq["lambda_n"].copy(), "jump_t": fq["jump_t"].copy(),
-                              "aperture": fq["aperture"].copy()})
+                              "aperture": fq["aperture"].copy(), "slip": slip_since_start(st)})
 
         def record(st):
             fq = model.fracture_quantities(st)
@@ -209,6 +245,20 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                 row[name] = (float((A[sel] * fq["aperture"][sel]).sum() / w),
                              float((A[sel] * fq["p_f"][sel]).sum() / w))
             series.append(row)
+            monitor["time"].append(st.time)
+            pc = model.cell_pressure(st)
+            for k, cell in points.items():
+                monitor["points"][k].append(float(pc[cell] - p0[cell]))
+            slip = slip_since_start(st)
+            for i, name in enumerate(net.names):
+                sel = net.fracture == i
+                monitor["fault_p"][name].append(float(fq["p_f"][sel].max()) if sel.any() else 0.0)
+                monitor["fault_slip"][name].append(float(slip[sel].max()) if sel.any() else 0.0)
+            if not onset and np.any(st.state == SLIP):
+                x = g.face_centroid[net.faces][st.state == SLIP]
+                onset.update({"time": st.time, "previous_time": monitor["time"][-2] if len(monitor["time"]) > 1
+                              else st.time, "faces": int(np.sum(st.state == SLIP)),
+                              "first_slipping_faces": np.round(x, 3).tolist()[:20]})
 
         output(0, 0, state)
         record(state)
@@ -248,6 +298,9 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
         write_fractures_csv(stage / "fractures.csv", blocks)
         if mesh.dim == 2:
             poro_plots(stage, case.name, mesh, net, s_arc, snapshots, series, schedule.end)
+            day = schedule.end > 10 * 86400.0
+            monitor_plots(stage, case.name, net, s_arc, monitor, snapshots, onset.get("time"),
+                          86400.0 if day else 1.0, "t (days)" if day else "t (s)")
         total = time.perf_counter() - t_start
         summary = {
             "case": case.name, "version": __version__, "model": "poromechanics",
@@ -257,6 +310,10 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             "steps": steps,
             "energy_check": {"violations": violations, "steps_checked": len(energies)},
             "fracture_means": series,
+            "slip_onset": onset or None,
+            "monitor": {"time": monitor["time"], "overpressure_at_points": monitor["points"],
+                        "max_fracture_pressure": monitor["fault_p"], "max_slip": monitor["fault_slip"],
+                        "points": {k: np.round(g.cell_centroid[c], 6).tolist() for k, c in points.items()}},
             "totals": {"seconds": total, "peak_memory_mb": peak_memory_mb(),
                        "seconds_assembly": timing["assembly"], "seconds_linear": timing["linear"],
                        "seconds_other": total - timing["assembly"] - timing["linear"],

@@ -179,3 +179,54 @@ def poro_plots(stage, case_name, mesh, net, s, snapshots, series, t_end):
         a.legend(fontsize=8)
     fig.suptitle(f"{case_name}: fracture means against time", fontsize=10)
     save(fig, stage / "fracture_means.png")
+
+
+def monitor_plots(stage, case_name, net, s, monitor: dict, snapshots, onset, unit_time=1.0, time_label="t (s)"):
+    """Monitoring figures of a poromechanics run (C6).
+
+    monitor : {"time": (n,), "points": {name: (n,) overpressure, Pa}, "fault_p": {fracture: (n,)
+        max p_f, Pa}, "fault_slip": {fracture: (n,) max slip since the start, m}}
+    snapshots : output snapshots with "time", "slip" (n_ff,) and "aperture" (n_ff,)
+    onset : time of the first slipping face (s) or None
+    Writes monitor.png (pressures and max slip against time) and slip_profiles.png (slip and
+    aperture along each fracture at every output time, against the arc length s).
+    """
+    plt = _plt()
+    t = np.asarray(monitor["time"]) / unit_time
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    for name, p in monitor["points"].items():
+        a1.plot(t, np.asarray(p) / 1e6, label=f"matrix at {name}")
+    for name, p in monitor["fault_p"].items():
+        a1.plot(t, np.asarray(p) / 1e6, "--", label=f"max p_f on {name}")
+    for name, v in monitor["fault_slip"].items():
+        a2.plot(t, np.asarray(v) * 1e3, label=f"max slip on {name}")
+    for a in (a1, a2):
+        if onset is not None:
+            a.axvline(onset / unit_time, color="0.4", lw=0.8, ls=":", label="slip onset")
+        a.set_xlabel(time_label)
+        a.grid(alpha=0.3)
+        a.legend(fontsize=8)
+    a1.set_ylabel("overpressure (MPa)")
+    a2.set_ylabel("slip |[[u − u⁰]]_τ| (mm)")
+    fig.suptitle(f"{case_name}: pressures and slip against time", fontsize=10)
+    save(fig, stage / "monitor.png")
+    nfr = len(net.names)
+    fig, axes = plt.subplots(2, nfr, figsize=(4.5 * nfr + 1, 6), squeeze=False, sharex="col")
+    cmap = plt.get_cmap("viridis")
+    for j, name in enumerate(net.names):
+        sel = np.flatnonzero(net.fracture == j)
+        order = sel[np.argsort(s[sel])]
+        for k, sn in enumerate(snapshots):
+            c = cmap(k / max(len(snapshots) - 1, 1))
+            lab = f"t = {sn['time'] / unit_time:.4g}"
+            axes[0, j].plot(s[order], sn["slip"][order] * 1e3, color=c, lw=1, label=lab)
+            axes[1, j].plot(s[order], sn["aperture"][order] * 1e6, color=c, lw=1, label=lab)
+        axes[0, j].set_title(name, fontsize=9)
+        axes[1, j].set_xlabel("arc length along the fracture (m)")
+        for a in axes[:, j]:
+            a.grid(alpha=0.3)
+    axes[0, 0].set_ylabel("slip (mm)")
+    axes[1, 0].set_ylabel("aperture (µm)")
+    axes[0, -1].legend(fontsize=7, title=time_label.split(" ")[-1], title_fontsize=7)
+    fig.suptitle(f"{case_name}: slip and aperture along the fractures", fontsize=10)
+    save(fig, stage / "slip_profiles.png")
