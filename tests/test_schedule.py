@@ -41,3 +41,27 @@ def test_march_cuts_failing_steps_then_gives_up():
     assert state == pytest.approx(4.0) and [r.cuts for r in recs] == [1, 1]
     with pytest.raises(RunError, match="failed after 1 cut"):
         march(TimeSchedule(0.0, 4.0, 4.0, max_cuts=1), 0.0, step)
+
+
+def test_newton_gives_up_early_when_the_residual_stalls():
+    """A cycling iteration (residual never halves) stops after free_steps + stall_iterations."""
+    import numpy as np
+    import scipy.sparse as sp
+
+    from polypore.core.errors import RunError
+    from polypore.solvers.newton import Linearisation, NewtonOptions, semismooth_newton
+
+    class Flip:
+        def solve(self, J, b):
+            return np.array([2.0])                      # always overshoots: x alternates ±1
+
+    def lin(x):
+        return Linearisation(np.array([x[0] ** 2 + 1.0]), sp.csr_matrix(np.eye(1)), {"r": float(x[0] ** 2 + 1)},
+                             {}, None)
+
+    opts = NewtonOptions(max_iterations=50, stall_iterations=5, free_steps=2, min_step=1.0)
+    with pytest.raises(RunError, match="stalled"):
+        semismooth_newton(lin, np.array([-1.0]), Flip(), lambda dx, x: 1.0, opts, verbose=False)
+    with pytest.raises(RunError, match="did not converge in 50"):
+        semismooth_newton(lin, np.array([-1.0]), Flip(), lambda dx, x: 1.0,
+                          NewtonOptions(max_iterations=50, stall_iterations=0, free_steps=2, min_step=1.0), verbose=False)
