@@ -22,7 +22,7 @@ def _model(*overrides):
 def test_reference_state_is_an_equilibrium_without_injection():
     """No injection: every step leaves displacement increments, slip and overpressure at
     round-off; the fault carries the in-situ effective traction and sticks."""
-    model, fs = _model("parameters.rate=0.0")
+    model, fs = _model("parameters.mass_rate=0.0")
     st0 = model.reference_state(fs.initial_pressure)
     ln = np.einsum("fi,fi->f", st0.lam, model.mech.normal)
     assert np.all(ln > 1e6)                                    # effectively compressed (Pa)
@@ -79,3 +79,24 @@ def test_bad_fault_injection_input(tmp_path, capsys, overrides, field, msg):
     assert code == 2, err
     assert f"error: {field}" in err and msg in err, err
     assert not (tmp_path / "x" / "summary.json").exists()
+
+
+def test_mass_rate_equals_the_volume_rate_times_density_and_takes_a_schedule():
+    from polypore.cases.flow_setup import flow_setup
+
+    case = load_case("fault-injection", [*COARSE])
+    fm = build_fractured_mesh(case)
+    data = {k: v for k, v in case.data.items() if k not in ("mechanics", "material", "contact", "initial_state",
+                                                            "monitor", "model")}
+    from polypore.cases.casefile import CaseFile
+
+    def flux(b):
+        d = dict(data, flow=dict(data["flow"], boundary=[b, {"name": "ymax", "pressure": 0.0}]))
+        return flow_setup(CaseFile("x", None, d), fm).boundary["injection"].value
+
+    q_mass = flux({"name": "injection", "mass_rate": 0.02})
+    q_vol = flux({"name": "injection", "rate": 2e-5})
+    assert q_mass == pytest.approx(q_vol, rel=1e-12) and q_vol == pytest.approx(-2e-5 / 100.0, rel=1e-9)
+    shut = flux({"name": "injection", "mass_rate": "0.02 * (t < 100 * day)"})
+    x = np.zeros(3)
+    assert shut(x, x, x, 50 * 86400.0)[0] == pytest.approx(q_mass) and shut(x, x, x, 150 * 86400.0)[0] == 0.0

@@ -31,6 +31,8 @@ Schema (SI units; every value may be a number or an expression, see below)::
     name = "xmin"                    # xmin ... zmax or a mesh physical group
     pressure = 1e5                   # Pa: expression of x, y, z, t, or "exact"
     # flux = -1e-9                   # outward flux density (m/s); < 0 injects
+    # mass_rate = 0.02               # or an injected mass rate (kg/s; kg/s per metre in 2D), divided
+                                     # by [flow] fluid_density (default 1000 kg/m³)
     # rate = 1e-6                    # injected volume rate through the part (m³/s; m²/s per metre
                                      # in 2D), spread uniformly; an expression of t (a schedule)
 
@@ -343,6 +345,7 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
     alpha = sec.number("alpha", None, positive=True)
     falpha = sec.number("fracture_alpha", None, positive=True)
     # boundary conditions
+    rho_w = sec.number("fluid_density", 1000.0, positive=True)     # kg/m³, for mass rates
     boundary, seen = {}, {}
     for b in sec.sections("boundary"):
         name = b.string("name")
@@ -352,17 +355,22 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
         if name in seen:
             raise InputError(b.field("name"), f"boundary {name!r} is given twice; one [[flow.boundary]] per part")
         seen[name] = b
-        has_p, has_q, has_r = b.has("pressure"), b.has("flux"), b.has("rate")
-        if has_p + has_q + has_r != 1:
+        has_p, has_q, has_r, has_m = b.has("pressure"), b.has("flux"), b.has("rate"), b.has("mass_rate")
+        if has_p + has_q + has_r + has_m != 1:
             raise InputError(b.field("pressure" if not has_p else "flux"),
-                             "give exactly one of pressure (Pa), flux (outward, m/s) or rate (injected, m³/s; "
-                             "m²/s per metre in 2D) for this boundary part")
-        if has_r:
-            # a total injection rate, spread uniformly over the part: flux density −rate/|part|
-            e = parse(b.raw("rate"), b.field("rate"), params)
+                             "give exactly one of pressure (Pa), flux (outward, m/s), rate (injected, m³/s; "
+                             "m²/s per metre in 2D) or mass_rate (injected, kg/s; kg/s per metre in 2D) for "
+                             "this boundary part")
+        if has_r or has_m:
+            # a total injection rate, spread uniformly over the part: flux density −rate/|part|;
+            # a mass rate is divided by the fluid density
+            key = "rate" if has_r else "mass_rate"
+            e = parse(b.raw(key), b.field(key), params)
             if e.names - {"t"}:
-                raise InputError(b.field("rate"), f"a rate may depend on t only (a schedule), got {e.text!r}")
+                raise InputError(b.field(key), f"a rate may depend on t only (a schedule), got {e.text!r}")
             part = float(mesh.geometry.face_area[mesh.boundary[name]].sum())
+            if has_m:
+                part *= rho_w
 
             def rate_flux(x, y, z, t=0.0, e=e, part=part):
                 return np.broadcast_to(-np.asarray(e(t=t), float) / part, np.shape(x)).astype(float)
