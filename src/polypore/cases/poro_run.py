@@ -30,6 +30,7 @@ from ..models.fracture_geometry import arc_length
 from ..models.poromechanics import Poromechanics
 from .casefile import CaseFile
 from .flow_setup import flow_setup
+from .insitu import reference_state
 from .mechanics_setup import mechanics_setup
 from .meshing import build_fractured_mesh
 from .run import peak_memory_mb
@@ -80,74 +81,6 @@ def poro_setup(case: CaseFile, fm):
                           dilatancy=fs.info.get("tan_psi", 0.0))
     model.reference = ref
     return model, fs, ms
-
-
-@dataclasses.dataclass(frozen=True)
-class ReferenceState:
-    """The ``[initial_state]`` table: a gravitational in-situ equilibrium (C6).
-
-    Depth z = surface − x_d (x_d the last coordinate, up). Total stress (compression < 0)
-    σ⁰ = −diag(k σ_v, …, σ_v) with σ_v = ρ_r g z; hydrostatic pressure p_h = p_s + ρ_w g z.
-    σ⁰ is in equilibrium with the rock weight ρ_r g and with the lithostatic load on the top,
-    and p_h with the fluid weight, so the run computes increments from this state: the
-    pressures of the ``[flow]`` table (initial, boundary) are relative to p_h, the mechanical
-    loads are increments, and the fracture faces start from λ⁰ = −(σ⁰ n⁺ + p_h n⁺), the
-    effective in-situ traction, on which the contact law acts.
-
-    Attributes (SI): gravity g (m/s²), rock_density ρ_r and fluid_density ρ_w (kg/m³),
-    stress_ratio k = σ_h/σ_v, surface (m), surface_pressure p_s (Pa).
-    """
-
-    gravity: float
-    rock_density: float
-    fluid_density: float
-    stress_ratio: float
-    surface: float
-    surface_pressure: float
-
-    def depth(self, x: np.ndarray) -> np.ndarray:
-        return self.surface - x[:, -1]
-
-    def stress(self, x: np.ndarray) -> np.ndarray:
-        """(n, d, d) σ⁰ at points x (n, d), Pa."""
-        n, d = x.shape
-        sv = self.rock_density * self.gravity * self.depth(x)
-        diag = np.full((n, d), self.stress_ratio) * sv[:, None]
-        diag[:, -1] = sv
-        return -np.einsum("ni,ij->nij", diag, np.eye(d))
-
-    def pressure(self, x: np.ndarray) -> np.ndarray:
-        """(n,) p_h at points x, Pa."""
-        return self.surface_pressure + self.fluid_density * self.gravity * self.depth(x)
-
-    def traction(self, fm) -> np.ndarray:
-        """(n_ff, d) λ⁰ = −(σ⁰ n⁺ + p_h n⁺) at the fracture-face centroids, Pa."""
-        net = fm.network
-        x = fm.mesh.geometry.face_centroid[net.faces]
-        n = net.normal
-        return -(np.einsum("fij,fj->fi", self.stress(x), n) + self.pressure(x)[:, None] * n)
-
-
-def reference_state(case: CaseFile, fm) -> ReferenceState | None:
-    """The validated ``[initial_state]`` table, or None."""
-    root = case.root()
-    if not root.has("initial_state"):
-        return None
-    sec = root.section("initial_state")
-    g = sec.number("gravity", 9.81, nonneg=True)
-    rr = sec.number("rock_density", positive=True)
-    rw = sec.number("fluid_density", 1000.0, nonneg=True)
-    k = sec.raw("stress_ratio", None)
-    if isinstance(k, bool) or not isinstance(k, (int, float)) or not (0 < k < np.inf):
-        raise InputError(sec.field("stress_ratio"), f"must be a number in (0, ∞) (σ_h/σ_v), got {k!r}")
-    surface = sec.number("surface", 0.0)
-    ps = sec.number("surface_pressure", 0.0)
-    sec.done()
-    top = float(fm.mesh.nodes[:, -1].max())
-    if top > surface + 1e-9 * max(1.0, abs(surface)):
-        raise InputError(sec.field("surface"), f"the domain reaches the elevation {top:g} m above the surface "
-                         f"{surface:g} m; the depth must be ≥ 0 everywhere")
-    return ReferenceState(float(g), float(rr), float(rw), float(k), float(surface), float(ps))
 
 
 def monitor_points(case: CaseFile, mesh) -> dict:
