@@ -65,3 +65,29 @@ def test_newton_gives_up_early_when_the_residual_stalls():
     with pytest.raises(RunError, match="did not converge in 50"):
         semismooth_newton(lin, np.array([-1.0]), Flip(), lambda dx, x: 1.0,
                           NewtonOptions(max_iterations=50, stall_iterations=0, free_steps=2, min_step=1.0), verbose=False)
+
+
+def test_newton_accepts_the_round_off_floor_only_when_nothing_moves():
+    """Residual stuck slightly above tol with zero increments and a fixed active set: accepted;
+    with increments that still move the iterate: not."""
+    import numpy as np
+    import scipy.sparse as sp
+
+    from polypore.core.errors import RunError
+    from polypore.solvers.newton import Linearisation, NewtonOptions, semismooth_newton
+
+    class Tiny:
+        def __init__(self, step):
+            self.step = step
+
+        def solve(self, J, b):
+            return np.array([self.step])
+
+    def lin(x):
+        return Linearisation(np.array([2e-8]), sp.csr_matrix(np.eye(1)), {"r": 2e-8}, {}, np.zeros(1, np.int8))
+
+    opts = NewtonOptions(max_iterations=10)
+    res = semismooth_newton(lin, np.array([1.0]), Tiny(1e-13), lambda dx, x: float(abs(dx[0])), opts, verbose=False)
+    assert res.iterations == 1 and res.residual == 2e-8
+    with pytest.raises(RunError):
+        semismooth_newton(lin, np.array([1.0]), Tiny(1e-6), lambda dx, x: float(abs(dx[0])), opts, verbose=False)
