@@ -38,7 +38,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..assembly.pattern import Pattern
-from ..core.errors import InputError
+from ..core.errors import InputError, RunError
 from ..mesh import FracturedMesh
 from ..solvers.linear import LinearSolver
 from ..solvers.newton import Linearisation, NewtonOptions, semismooth_newton
@@ -388,8 +388,6 @@ class Poromechanics:
         """The reference (in-situ) state itself: u = Dirichlet values, λ = λ⁰, pressures from p0
         (Pa, relative to the reference pressure). Raises RunError if λ⁰ violates the contact
         law (the reference state would not be an equilibrium)."""
-        from ..core.errors import RunError
-
         sol = self.flow.initial_state(p0, t0)
         p = self.pressure_vector(sol)
         mech, d = self.mech, self.dim
