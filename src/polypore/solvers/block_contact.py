@@ -198,7 +198,11 @@ class _PressureSolve:
         if self.method == "pardiso":
             import pypardiso
 
-            ps = pypardiso.PyPardisoSolver()
+            if getattr(self, "_ps", None) is not None:
+                # release the previous step's factors: PARDISO keeps them until told (without
+                # this, peak memory grew to 11 GB over C5's 50 steps at 46k cells)
+                self._ps.free_memory(everything=True)
+            ps = self._ps = pypardiso.PyPardisoSolver()
             ps.factorize(Sp)
             self.apply = lambda r: ps.solve(Sp, np.asarray(r, float))
         else:
