@@ -170,19 +170,24 @@ def test_energy_estimate_with_coulomb_slip(dim, n, two_sided):
         assert e.contact_normal > -1e-12 * e.scale and e.numerical_dissipation > 0
 
 
+def _finite_difference_check(P, st, eps=1e-6):
+    """(ctx, x, v, linearisation at x, central difference of the residual along v, J v) for the
+    step st → st.time + 10 s, at a perturbed first iterate x."""
+    ctx, x0 = P.step_context(st, 10.0, st.time + 10.0)
+    x = x0 * (1 + 1e-3 * np.random.default_rng(0).standard_normal(x0.size))
+    lin = P._linearise(x, ctx)
+    v = np.random.default_rng(1).standard_normal(x.size) * np.abs(x).mean()
+    fd = (P._linearise(x + eps * v, ctx).residual - P._linearise(x - eps * v, ctx).residual) / (2 * eps)
+    return ctx, x, v, lin, fd, lin.jacobian @ v
+
+
 def test_jacobian_matches_finite_differences():
     """The pattern-filled Jacobian equals the derivative of the residual (away from kinks)."""
     P = shear_case(2, 8)
     st = P.initial_state(1e5)
     st, _ = P.step(st, 10.0)
-    ctx, x0 = P.step_context(st, 10.0, 20.0)
-    x = x0 * (1 + 1e-3 * np.random.default_rng(0).standard_normal(x0.size))
-    lin = P._linearise(x, ctx)
+    ctx, x, v, lin, fd, Jv = _finite_difference_check(P, st)
     assert np.any(lin.active_set == SLIP)
-    v = np.random.default_rng(1).standard_normal(x.size) * np.abs(x).mean()
-    eps = 1e-6
-    fd = (P._linearise(x + eps * v, ctx).residual - P._linearise(x - eps * v, ctx).residual) / (2 * eps)
-    Jv = lin.jacobian @ v
     assert np.linalg.norm(fd - Jv) < 1e-6 * np.linalg.norm(Jv)
 
 
@@ -273,14 +278,8 @@ def test_jacobian_with_dilatancy_and_reference_traction():
     P.tan_psi[:] = np.tan(np.radians(20.0))
     P.lam0 = 1e3 * P.mech.normal
     st, _ = P.step(st, 10.0)
-    ctx, x0 = P.step_context(st, 10.0, 20.0)
-    x = x0 * (1 + 1e-3 * np.random.default_rng(0).standard_normal(x0.size))
-    lin = P._linearise(x, ctx)
+    ctx, x, v, lin, fd, Jv = _finite_difference_check(P, st)
     assert np.any(lin.active_set == SLIP)
-    v = np.random.default_rng(1).standard_normal(x.size) * np.abs(x).mean()
-    eps = 1e-6
-    fd = (P._linearise(x + eps * v, ctx).residual - P._linearise(x - eps * v, ctx).residual) / (2 * eps)
-    Jv = lin.jacobian @ v
     assert np.linalg.norm(fd - Jv) < 1e-6 * np.linalg.norm(Jv)
     P.tan_psi[:] = 0.0
     lin0 = P._linearise(x, ctx)

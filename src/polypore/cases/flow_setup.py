@@ -226,15 +226,6 @@ def _storage(sec: Section, mesh):
     return float(M[0]) if np.all(M == M[0]) else M
 
 
-def _positive_or_inf(sec: Section, key: str, default) -> float:
-    v = sec.raw(key, default)
-    if isinstance(v, str) and v.strip().lower() in ("inf", "infinity"):
-        return np.inf
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not v > 0:
-        raise InputError(sec.field(key), f"must be a positive number (Pa) or \"inf\" (no storage), got {v!r}")
-    return float(v)
-
-
 def fracture_variables(fm: FracturedMesh) -> dict:
     """Per-fracture-face D (distance to the nearest tip, 1e30 without tips) and L (m)."""
     net = fm.network
