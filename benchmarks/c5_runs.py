@@ -1,6 +1,6 @@
 """C5 (``dfm-3d``) runs for a list of mesh sizes and bubble options, each under ``/usr/bin/time -v``.
 
-    .venv/bin/python benchmarks/c5_runs.py [--sizes 0.047 0.034] [--bubbles one-sided two-sided] [--threads 1]
+    .venv/bin/python benchmarks/c5_runs.py [--sizes 0.047 0.0332] [--bubbles one-sided two-sided] [--threads 1]
 
 Run directory ``<out-root>/size<size>-<bubbles>-<linear>`` (default out-root benchmarks/out/c5),
 log ``<out-root>/size<size>-<bubbles>-<linear>.log`` (stdout and stderr as the run goes), and after
@@ -27,8 +27,8 @@ def run_dir_name(size: float, bubbles: str, linear: str) -> str:
 
 def main() -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--sizes", type=float, nargs="+", default=[0.047, 0.034],
-                    help="mesh.size values (0.047: about 46k tetrahedra, 0.034: about 127k)")
+    ap.add_argument("--sizes", type=float, nargs="+", default=[0.047, 0.0332],
+                    help="mesh.size values (0.047: about 46k tetrahedra, 0.0332: 127k)")
     ap.add_argument("--bubbles", nargs="+", choices=("one-sided", "two-sided"), default=["one-sided", "two-sided"])
     ap.add_argument("--linear", default="block-amg", help="solver.linear (default: block-amg)")
     ap.add_argument("--threads", type=int, default=1, help="OMP_NUM_THREADS and MKL_NUM_THREADS (default: 1)")

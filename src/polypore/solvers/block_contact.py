@@ -107,7 +107,8 @@ class BlockContactSolver:
     d : block size of the multipliers (2 or 3)
     condensation : ContactCondensation
     near_nullspace : (n_u, k) rigid-body modes of the free displacement dofs
-    rtol, maxiter : GMRES tolerance (relative residual) and iteration cap
+    rtol, maxiter : GMRES tolerance (relative residual) and cap on inner iterations
+    accept_rtol : relative residual still returned when rtol is not reached (round-off floor)
     """
 
     n_u: int
@@ -117,6 +118,7 @@ class BlockContactSolver:
     rtol: float = 1e-8
     maxiter: int = 300
     restart: int = 100
+    accept_rtol: float = 1e-6
     iterations: list = field(default_factory=list)
     seconds: float = 0.0
 
@@ -142,7 +144,15 @@ class BlockContactSolver:
 
 
 def _gmres(J, rhs, apply, solver):
-    """Right-preconditioned GMRES with iteration count and failure message (shared by both solvers)."""
+    """Right-preconditioned restarted GMRES with iteration count and failure message.
+
+    Restart cycles are driven here, one SciPy call each, so that ``solver.maxiter`` caps the
+    inner iterations and the true residual is checked after every cycle. On fine meshes it has a
+    round-off floor (C5 at 127k cells: 1.45e-8 relative while the preconditioned residual was at
+    1e-29); SciPy's own loop then restarts with ever smaller inner tolerances (40 000 iterations
+    in one solve). A cycle that did not halve the true residual, left within ``solver.accept_rtol``,
+    is therefore accepted: Newton only needs an inexact step.
+    """
     n = J.shape[0]
     M = spla.LinearOperator((n, n), matvec=apply, dtype=float)
     its = [0]
@@ -150,13 +160,29 @@ def _gmres(J, rhs, apply, solver):
     def cb(_):
         its[0] += 1
 
-    x, info = spla.gmres(J, rhs, M=M, rtol=solver.rtol, restart=solver.restart, maxiter=solver.maxiter,
-                         callback=cb, callback_type="pr_norm")
+    bnorm = np.linalg.norm(rhs)
+    x = np.zeros(n)
+    if bnorm == 0.0:
+        solver.iterations.append(0)
+        return x
+    restart = min(solver.restart, solver.maxiter)
+    prev = np.inf
+    while True:
+        x, info = spla.gmres(J, rhs, x0=x, M=M, rtol=solver.rtol, restart=restart, maxiter=1,
+                             callback=cb, callback_type="pr_norm")
+        res = np.linalg.norm(J @ x - rhs) / bnorm
+        if info == 0 or res <= solver.rtol:
+            break
+        if res > 0.5 * prev and res <= solver.accept_rtol:     # a whole cycle gained nothing: the floor
+            log.debug("GMRES: relative residual %.2e after %d iterations, at the round-off floor above rtol "
+                      "%.0e; accepted", res, its[0], solver.rtol)
+            break
+        prev = res
+        if its[0] >= solver.maxiter:
+            solver.iterations.append(its[0])
+            raise RunError(f"GMRES did not reach rtol={solver.rtol:g} in {its[0]} iterations (relative "
+                           f"residual {res:.2e}); try solver.linear = 'pardiso'")
     solver.iterations.append(its[0])
-    if info != 0:
-        res = np.linalg.norm(J @ x - rhs) / max(np.linalg.norm(rhs), 1e-300)
-        raise RunError(f"GMRES did not reach rtol={solver.rtol:g} in {its[0]} iterations (relative residual "
-                       f"{res:.2e}); try solver.linear = 'pardiso'")
     return x
 
 
@@ -237,6 +263,7 @@ class BlockPoroSolver:
     rtol: float = 1e-8
     maxiter: int = 400
     restart: int = 100
+    accept_rtol: float = 1e-6
     iterations: list = field(default_factory=list)
     seconds: float = 0.0
 
