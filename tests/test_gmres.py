@@ -43,14 +43,15 @@ def test_floor_above_accept_rtol_is_an_error():
         _gmres(J, b, apply, _opts(accept_rtol=1e-12, maxiter=30, restart=10))
 
 
-def test_maxiter_caps_inner_iterations():
+@pytest.mark.parametrize("maxiter, restart", [(7, 100), (25, 10)])
+def test_maxiter_caps_inner_iterations(maxiter, restart):
     rng = np.random.default_rng(1)
     n = 300
     J = sp.diags(np.logspace(0, 6, n)) + sp.random(n, n, density=0.02, random_state=rng)
-    opts = _opts(maxiter=7)
-    with pytest.raises(RunError, match="in 7 iterations"):
+    opts = _opts(maxiter=maxiter, restart=restart)
+    with pytest.raises(RunError, match=f"in {maxiter} iterations"):
         _gmres(sp.csr_matrix(J), rng.standard_normal(n), lambda r: r, opts)
-    assert opts.iterations[-1] == 7
+    assert opts.iterations[-1] == maxiter
 
 
 def test_zero_right_hand_side():

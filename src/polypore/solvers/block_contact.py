@@ -165,9 +165,9 @@ def _gmres(J, rhs, apply, solver):
     if bnorm == 0.0:
         solver.iterations.append(0)
         return x
-    restart = min(solver.restart, solver.maxiter)
     prev = np.inf
     while True:
+        restart = min(solver.restart, solver.maxiter - its[0])
         x, info = spla.gmres(J, rhs, x0=x, M=M, rtol=solver.rtol, restart=restart, maxiter=1,
                              callback=cb, callback_type="pr_norm")
         res = np.linalg.norm(J @ x - rhs) / bnorm
