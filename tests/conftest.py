@@ -65,3 +65,16 @@ def assert_exact_geometry(mesh, volume=None, planar=True, tol=1e-11):
 @pytest.fixture
 def exact_geometry():
     return assert_exact_geometry
+
+
+@pytest.fixture
+def cli(capsys):
+    """Run ``polypore`` in-process: ``cli(*argv)`` returns (exit code, stdout, stderr)."""
+    from polypore.cli import main
+
+    def run(*argv):
+        code = main(list(argv))
+        out = capsys.readouterr()
+        return code, out.out, out.err
+
+    return run

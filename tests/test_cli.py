@@ -9,18 +9,12 @@ import pytest
 from polypore.cli import main
 
 
-def run(capsys, *argv):
-    code = main(list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-def test_help_and_cases(capsys):
+def test_help_and_cases(capsys, cli):
     with pytest.raises(SystemExit) as exc:
         main(["--help"])
     assert exc.value.code == 0
     assert "mesh" in capsys.readouterr().out
-    code, out, _ = run(capsys, "cases")
+    code, out, _ = cli("cases")
     assert code == 0
     assert "frictionless-3d" in out and "dfm-2d" in out and "C4" in out
 
@@ -30,7 +24,7 @@ def test_console_script_entry_point():
     assert proc.returncode == 0 and "dfm-3d" in proc.stdout
 
 
-def test_mesh_cartesian_case(tmp_path, capsys):
+def test_mesh_cartesian_case(tmp_path, cli):
     case = tmp_path / "t.toml"
     case.write_text("""
 name = "t"
@@ -53,7 +47,7 @@ lower = [1.0, 0.0]
 upper = [2.0, 1.0]
 """)
     out = tmp_path / "out"
-    code, text, err = run(capsys, "mesh", str(case), "--out", str(out))
+    code, text, err = cli("mesh", str(case), "--out", str(out))
     assert code == 0, err
     assert "fracture F: 4 faces" in text
     rep = json.loads((out / "mesh.json").read_text())
@@ -62,9 +56,9 @@ upper = [2.0, 1.0]
     assert (out / "mesh.vtu").stat().st_size > 0 and (out / "fractures.vtu").exists()
     assert (out / "case.toml").exists()
     # refuses a non-empty directory without --force
-    code, _, err = run(capsys, "mesh", str(case), "--out", str(out))
+    code, _, err = cli("mesh", str(case), "--out", str(out))
     assert code == 2 and "not empty" in err
-    code, _, err = run(capsys, "mesh", str(case), "--out", str(out), "--force", "--set", "mesh.cells=[4, 2]")
+    code, _, err = cli("mesh", str(case), "--out", str(out), "--force", "--set", "mesh.cells=[4, 2]")
     assert code == 0, err
 
 
@@ -81,7 +75,7 @@ BAD = [
 
 
 @pytest.mark.parametrize("overrides,msg", BAD)
-def test_bad_input_exit_2(tmp_path, capsys, overrides, msg):
+def test_bad_input_exit_2(tmp_path, cli, overrides, msg):
     case = tmp_path / "t.toml"
     case.write_text("""
 name = "t"
@@ -105,14 +99,14 @@ upper = [2.0, 1.0]
     argv = ["mesh", str(case), "--out", str(tmp_path / "o")]
     for o in overrides:
         argv += ["--set", o]
-    code, _, err = run(capsys, *argv)
+    code, _, err = cli(*argv)
     assert code == 2, err
     assert msg in err
     assert "Traceback" not in err
     assert not (tmp_path / "o" / "mesh.json").exists()
 
 
-def test_degenerate_polygon_3d(tmp_path, capsys):
+def test_degenerate_polygon_3d(tmp_path, cli):
     case = tmp_path / "p.toml"
     case.write_text("""
 name = "p"
@@ -125,16 +119,16 @@ cells = [2, 2, 2]
 name = "P"
 vertices = [[0.0, 0.0, 0.5], [0.5, 0.5, 0.5], [1.0, 1.0, 0.5]]
 """)
-    code, _, err = run(capsys, "mesh", str(case), "--out", str(tmp_path / "o"))
+    code, _, err = cli("mesh", str(case), "--out", str(tmp_path / "o"))
     assert code == 2 and "fractures.P" in err and "collinear" in err
 
 
-def test_missing_files(tmp_path, capsys):
-    code, _, err = run(capsys, "mesh", str(tmp_path / "nope.toml"))
+def test_missing_files(tmp_path, cli):
+    code, _, err = cli("mesh", str(tmp_path / "nope.toml"))
     assert code == 2 and "nope.toml" in err and "does not exist" in err
-    code, _, err = run(capsys, "mesh", "no-such-case")
+    code, _, err = cli("mesh", "no-such-case")
     assert code == 2 and "unknown case" in err
     case = tmp_path / "f.toml"
     case.write_text('name = "f"\n[mesh]\ngenerator = "file"\nfile = "absent.msh"\n')
-    code, _, err = run(capsys, "mesh", str(case), "--out", str(tmp_path / "o"))
+    code, _, err = cli("mesh", str(case), "--out", str(tmp_path / "o"))
     assert code == 2 and "absent.msh" in err

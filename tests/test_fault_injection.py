@@ -7,7 +7,6 @@ import pytest
 from polypore.cases.casefile import load_case
 from polypore.cases.meshing import build_fractured_mesh
 from polypore.cases.poro_run import poro_setup
-from polypore.cli import main
 
 COARSE = ["mesh.size=200", "mesh.fracture_size=80"]
 
@@ -35,13 +34,13 @@ def test_reference_state_is_an_equilibrium_without_injection():
     assert np.abs(st.lam - st0.lam).max() < 1e-9 * np.abs(st0.lam).max()
 
 
-def test_injection_run_reactivates_the_fault_in_the_reservoir(tmp_path, capsys):
+def test_injection_run_reactivates_the_fault_in_the_reservoir(tmp_path, cli):
     """Coarse `polypore run fault-injection`: slip starts on faces at reservoir depth after the
     pressure has risen, spreads, and every C6 output is written; no energy violation."""
     import json
 
     out = tmp_path / "c6"
-    code, err = run(capsys, "run", "fault-injection", "--out", str(out), *[a for o in COARSE for a in ("--set", o)])
+    code, _, err = cli("run", "fault-injection", "--out", str(out), *[a for o in COARSE for a in ("--set", o)])
     assert code == 0, err
     s = json.loads((out / "summary.json").read_text())
     on = s["slip_onset"]
@@ -58,11 +57,6 @@ def test_injection_run_reactivates_the_fault_in_the_reservoir(tmp_path, capsys):
         assert (out / name).stat().st_size > 0
 
 
-def run(capsys, *argv):
-    code = main(list(argv))
-    return code, capsys.readouterr().err
-
-
 @pytest.mark.parametrize("overrides,field,msg", [
     (["initial_state.stress_ratio=0"], "initial_state.stress_ratio", "(0, ∞)"),
     (["initial_state.stress_ratio=-0.7"], "initial_state.stress_ratio", "(0, ∞)"),
@@ -73,9 +67,9 @@ def run(capsys, *argv):
     (["initial_state.surface=-1000"], "initial_state.surface", "depth must be ≥ 0"),
     (["initial_state.stress_ratio=0.3"], "initial_state", "not an equilibrium"),
 ])
-def test_bad_fault_injection_input(tmp_path, capsys, overrides, field, msg):
+def test_bad_fault_injection_input(tmp_path, cli, overrides, field, msg):
     args = [a for o in [*COARSE, *overrides] for a in ("--set", o)]
-    code, err = run(capsys, "run", "fault-injection", "--out", str(tmp_path / "x"), *args)
+    code, _, err = cli("run", "fault-injection", "--out", str(tmp_path / "x"), *args)
     assert code == 2, err
     assert f"error: {field}" in err and msg in err, err
     assert not (tmp_path / "x" / "summary.json").exists()

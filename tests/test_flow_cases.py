@@ -10,15 +10,8 @@ import pytest
 from polypore.cases.casefile import load_case
 from polypore.cases.flow_exact import DarcyManufactured
 from polypore.cases.flow_run import flow_convergence_point
-from polypore.cli import main
 
 pytest.importorskip("gmsh")  # darcy-dfm-2d meshes with gmsh
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 SMALL = {
@@ -29,9 +22,9 @@ SMALL = {
 
 
 @pytest.mark.parametrize("name", sorted(SMALL))
-def test_builtin_flow_case_runs(tmp_path, capsys, name):
+def test_builtin_flow_case_runs(tmp_path, cli, name):
     out = tmp_path / name
-    code, text, err = run(capsys, "run", name, "--out", str(out), *SMALL[name])
+    code, text, err = cli("run", name, "--out", str(out), *SMALL[name])
     assert code == 0, err
     s = json.loads((out / "summary.json").read_text())
     assert s["case"] == name and s["model"] == "flow" and s["steady"] is True
@@ -60,10 +53,10 @@ def test_builtin_flow_case_runs(tmp_path, capsys, name):
         assert s["errors"]["p_cell_L2"] < 0.2
 
 
-def test_dfm_flows_from_right_to_left(tmp_path, capsys):
+def test_dfm_flows_from_right_to_left(tmp_path, cli):
     """The higher pressure on xmax drives flow to xmin: inflow = outflow, F5 drains xmax, p in (1e5, 2e5)."""
     out = tmp_path / "dfm"
-    code, _, err = run(capsys, "run", "darcy-dfm-2d", "--out", str(out), *SMALL["darcy-dfm-2d"])
+    code, _, err = cli("run", "darcy-dfm-2d", "--out", str(out), *SMALL["darcy-dfm-2d"])
     assert code == 0, err
     s = json.loads((out / "summary.json").read_text())
     b = s["fluxes"]["boundary"]
@@ -74,9 +67,9 @@ def test_dfm_flows_from_right_to_left(tmp_path, capsys):
     assert np.all((pf > 1e5) & (pf < 2e5))
 
 
-def test_transient_run_balances_storage(tmp_path, capsys):
+def test_transient_run_balances_storage(tmp_path, cli):
     out = tmp_path / "tr"
-    code, _, err = run(capsys, "run", "darcy-dfm-2d", "--out", str(out), *SMALL["darcy-dfm-2d"],
+    code, _, err = cli("run", "darcy-dfm-2d", "--out", str(out), *SMALL["darcy-dfm-2d"],
                        "--set", "time.end=100", "--set", "time.step=25", "--set", "flow.initial_pressure=1e5",
                        "--set", "time.output_every=2")
     assert code == 0, err
@@ -89,13 +82,13 @@ def test_transient_run_balances_storage(tmp_path, capsys):
     assert steps == {"0", "2", "4"}
 
 
-def test_convergence_command_rates(tmp_path, capsys):
+def test_convergence_command_rates(tmp_path, cli):
     """HFV theory (Brenner et al. 2017, gradient-scheme analysis) gives first order, O(h), for the
     broken gradient and for the pressures in L2 on general polytopal meshes; we assert ≥ 0.85 for all
     four errors (three Voronoi levels). The pressures superconverge at second order (measured
     1.95–2.0); ≥ 1.7 is asserted as a regression guard."""
     out = tmp_path / "conv"
-    code, text, err = run(capsys, "convergence", "darcy-manufactured-2d", "--levels", "3", "--out", str(out))
+    code, text, err = cli("convergence", "darcy-manufactured-2d", "--levels", "3", "--out", str(out))
     assert code == 0, err
     res = json.loads((out / "convergence.json").read_text())
     rates = res["rates"]
@@ -142,28 +135,28 @@ BAD = [
 
 
 @pytest.mark.parametrize("args,field,what", BAD, ids=[b[1] + ":" + b[2] for b in BAD])
-def test_bad_flow_input_exits_2(tmp_path, capsys, args, field, what):
+def test_bad_flow_input_exits_2(tmp_path, cli, args, field, what):
     out = tmp_path / "bad"
-    code, text, err = run(capsys, "run", "darcy-dfm-2d", "--out", str(out), *SMALL["darcy-dfm-2d"], *args)
+    code, text, err = cli("run", "darcy-dfm-2d", "--out", str(out), *SMALL["darcy-dfm-2d"], *args)
     assert code == 2, err
     assert field in err and what in err, err
     assert "Traceback" not in err
     assert not (out / "summary.json").exists()
 
 
-def test_bad_manufactured_geometry_exits_2(tmp_path, capsys):
-    code, _, err = run(capsys, "run", "darcy-manufactured-2d", "--out", str(tmp_path / "b"),
+def test_bad_manufactured_geometry_exits_2(tmp_path, cli):
+    code, _, err = cli("run", "darcy-manufactured-2d", "--out", str(tmp_path / "b"),
                        "--set", "fractures.G1.vertices=[[0.5, 1.0], [0.5, 0.0]]")
     assert code == 2 and "exact.solution" in err and "+ side" in err, err
-    code, _, err = run(capsys, "run", "darcy-manufactured-2d", "--out", str(tmp_path / "c"),
+    code, _, err = cli("run", "darcy-manufactured-2d", "--out", str(tmp_path / "c"),
                        "--set", "flow.aperture=0.1 + 0.01*x")
     assert code == 2 and "exact.solution" in err and "aperture" in err, err
 
 
-def test_failed_transient_run_leaves_nothing_complete(tmp_path, capsys):
+def test_failed_transient_run_leaves_nothing_complete(tmp_path, cli):
     """The aperture turns negative at t = 100 s, during the run: exit 2, no summary.json, only failed.json."""
     out = tmp_path / "fail"
-    code, _, err = run(capsys, "run", "darcy-dfm-2d", "--out", str(out), *SMALL["darcy-dfm-2d"],
+    code, _, err = cli("run", "darcy-dfm-2d", "--out", str(out), *SMALL["darcy-dfm-2d"],
                        "--set", "time.end=200", "--set", "time.step=50", "--set", "flow.initial_pressure=1e5",
                        "--set", "flow.aperture=1e-4*(1 - t/100) + 1e-9")
     assert code == 2 and "flow.aperture" in err, err

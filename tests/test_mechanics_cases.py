@@ -9,13 +9,6 @@ import pytest
 from polypore.cases.casefile import load_case
 from polypore.cases.convergence import fit_rate, refined
 from polypore.cases.run import solve_static
-from polypore.cli import main
-
-
-def run(capsys, *argv):
-    code = main(list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def test_c1_cartesian_converges_first_order():
@@ -39,9 +32,9 @@ def test_refined_case_halves_sizes_or_doubles_cells():
     assert refined(c, 1).data["mesh"]["cells"] == [4, 6, 8]
 
 
-def test_six_fractures_static_shows_all_states(tmp_path, capsys):
+def test_six_fractures_static_shows_all_states(tmp_path, cli):
     out = tmp_path / "six"
-    code, text, err = run(capsys, "run", "six-fractures-static", "--out", str(out), "--set", "mesh.size=0.1",
+    code, text, err = cli("run", "six-fractures-static", "--out", str(out), "--set", "mesh.size=0.1",
                           "--set", "mesh.fracture_size=0.04")
     assert code == 0, err
     summary = json.loads((out / "summary.json").read_text())
@@ -73,9 +66,9 @@ def test_single_crack_against_analytic_profile():
     assert errs[1]["lambda_n_L2_rel_away_from_tips"] < errs[0]["lambda_n_L2_rel_away_from_tips"] < 0.3
 
 
-def test_convergence_command_writes_table(tmp_path, capsys):
+def test_convergence_command_writes_table(tmp_path, cli):
     out = tmp_path / "conv"
-    code, text, err = run(capsys, "convergence", "frictionless-3d", "--levels", "2", "--out", str(out),
+    code, text, err = cli("convergence", "frictionless-3d", "--levels", "2", "--out", str(out),
                           "--set", "mesh.generator=cartesian", "--set", "mesh.cells=[2,2,2]")
     assert code == 0, err
     res = json.loads((out / "convergence.json").read_text())
@@ -98,19 +91,19 @@ C3_BAD = [
 
 
 @pytest.mark.parametrize("overrides,field,msg", C3_BAD)
-def test_bad_mechanics_input_exit_2(tmp_path, capsys, overrides, field, msg):
+def test_bad_mechanics_input_exit_2(tmp_path, cli, overrides, field, msg):
     argv = ["run", "single-crack", "--out", str(tmp_path / "o"), "--set", "mesh.size=20", "--set",
             "mesh.fracture_size=0.5"]
     for o in overrides:
         argv += ["--set", o]
-    code, _, err = run(capsys, *argv)
+    code, _, err = cli(*argv)
     assert code == 2, err
     assert field in err and msg in err, err
     assert "Traceback" not in err
     assert not (tmp_path / "o" / "summary.json").exists()
 
 
-def test_no_dirichlet_part_is_rejected(tmp_path, capsys):
+def test_no_dirichlet_part_is_rejected(tmp_path, cli):
     case = tmp_path / "free.toml"
     case.write_text("""
 name = "free"
@@ -128,7 +121,7 @@ traction = [-1e6, 0]
 [contact]
 law = "frictionless"
 """)
-    code, _, err = run(capsys, "run", str(case), "--out", str(tmp_path / "o"))
+    code, _, err = cli("run", str(case), "--out", str(tmp_path / "o"))
     assert code == 2 and "mechanics.boundary" in err and "rigid motions are free" in err
 
 

@@ -5,21 +5,14 @@ import json
 
 import pytest
 
-from polypore.cli import main
 
 COARSE = ["--set", "mesh.size=0.2", "--set", "mesh.fracture_size=0.1", "--set", "time.step=250",
           "--set", "time.output_times=[500.0, 2000.0]"]
 
 
-def run(capsys, *argv):
-    code = main(list(argv))
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
-def test_c4_coarse_run_writes_everything_and_passes_the_energy_check(tmp_path, capsys):
+def test_c4_coarse_run_writes_everything_and_passes_the_energy_check(tmp_path, cli):
     out = tmp_path / "c4"
-    code, text, err = run(capsys, "run", "dfm-2d", "--out", str(out), *COARSE)
+    code, text, err = cli("run", "dfm-2d", "--out", str(out), *COARSE)
     assert code == 0, err
     s = json.loads((out / "summary.json").read_text())
     assert s["model"] == "poromechanics" and len(s["steps"]) == 8
@@ -48,17 +41,17 @@ BAD = [
 
 
 @pytest.mark.parametrize("overrides,field,msg", BAD)
-def test_bad_poromechanics_input(tmp_path, capsys, overrides, field, msg):
+def test_bad_poromechanics_input(tmp_path, cli, overrides, field, msg):
     argv = ["run", "dfm-2d", "--out", str(tmp_path / "o"), *COARSE]
     for o in overrides:
         argv += ["--set", o]
-    code, _, err = run(capsys, *argv)
+    code, _, err = cli(*argv)
     assert code == 2, err
     assert f"error: {field}" in err and msg in err and "Traceback" not in err
     assert not (tmp_path / "o" / "summary.json").exists()
 
 
-def test_poromechanics_case_without_flow_table(tmp_path, capsys):
+def test_poromechanics_case_without_flow_table(tmp_path, cli):
     case = tmp_path / "noflow.toml"
     case.write_text("""
 name = "noflow"
@@ -78,7 +71,7 @@ u = [0, 0]
 end = 10.0
 step = 1.0
 """)
-    code, _, err = run(capsys, "run", str(case), "--out", str(tmp_path / "o"))
+    code, _, err = cli("run", str(case), "--out", str(tmp_path / "o"))
     assert code == 2 and "error: flow" in err and "flow data" in err
 
 
