@@ -253,3 +253,41 @@ def test_cli_file_mesh(tmp_path, capsys):
     rep = json.loads((out / "mesh.json").read_text())
     assert rep["fractures"]["F"]["tips"] == 2
     assert set(rep["mesh"]["regions"]) == {"left", "right"}
+
+
+
+def test_file_mesh_arc_length_and_static_run(tmp_path, cli):
+    """A 2D fracture read from a file has no vertex list: its arc length comes from its faces,
+    and a static run writes the profiles along it (this used to crash in the plots)."""
+    import csv
+
+    from polypore.cases.casefile import load_case
+    from polypore.cases.meshing import build_fractured_mesh
+    from polypore.models.fracture_geometry import arc_length
+
+    case = _case(tmp_path, "frac")
+    fm = build_fractured_mesh(load_case(str(case)))
+    s = arc_length(fm)
+    x = fm.mesh.geometry.face_centroid[fm.network.faces, 0]
+    np.testing.assert_allclose(s, x - 0.2, atol=1e-12)  # fracture y = 0.3 from x = 0.2 (its smallest end)
+    # clamped bottom (the file's only boundary group), loaded by gravity-like body force
+    case.write_text(case.read_text() + """
+[material]
+E = 1e9
+nu = 0.25
+[mechanics]
+body_force = [1e5, -1e6]
+[[mechanics.boundary]]
+name = "bottom"
+ux = 0.0
+uy = 0.0
+[contact]
+law = "coulomb"
+friction = 0.3
+""")
+    code, _, err = cli("run", str(case), "--out", str(tmp_path / "r"))
+    assert code == 0, err
+    rows = list(csv.DictReader((tmp_path / "r" / "fractures.csv").open()))
+    assert len(rows) == fm.network.n_faces
+    np.testing.assert_allclose(sorted(float(r["s"]) for r in rows), np.sort(s), atol=1e-9)
+    assert (tmp_path / "r" / "profiles.png").stat().st_size > 0

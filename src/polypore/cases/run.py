@@ -131,7 +131,7 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
                              problem.normal, st.lam, names)
         write_fractures_csv(stage / "fractures.csv", [cols])
         if plots and d == 2 and net.n_faces:
-            _plots_2d(stage, case, problem, st, cols, setup)
+            _plots_2d(stage, case, problem, st, cols, setup, s)
         summary = {
             "case": case.name, "version": __version__,
             "mesh": {"dim": d, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
@@ -155,9 +155,8 @@ def _von_mises(S):
     return np.sqrt(1.5 * np.einsum("kij,kij->k", dev, dev))
 
 
-def _plots_2d(stage, case, problem, st, cols, setup):
+def _plots_2d(stage, case, problem, st, cols, setup, s):
     net = problem.fm.network
-    s = np.asarray(cols["s"], float)
     fields = {"λ_n (Pa)": np.asarray(cols["lambda_n"], float), "|λ_τ| (Pa)": np.asarray(cols["lambda_t"], float),
               "|[[u]]_τ| (m)": np.asarray(cols["jump_t"], float), "[[u]]_n (m)": np.asarray(cols["jump_n"], float)}
     ref = None
