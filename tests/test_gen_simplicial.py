@@ -4,6 +4,7 @@ import logging
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 from polypore.cases.casefile import load_case
 from polypore.cases.meshing import build_fractured_mesh
@@ -236,3 +237,63 @@ def test_tip_refinement_2d_and_its_input_check():
     assert tipped.network.n_faces > plain.network.n_faces
     with pytest.raises(InputError, match="mesh.tip_size"):
         simplicial_mesh([0, 0, 0], [1, 1, 1], [], 0.5, tip_size=0.01)
+
+
+def _reflect(X, a, b):
+    """Reflect points X (n, 2) about the line through a and b."""
+    t = (b - a) / np.linalg.norm(b - a)
+    n = np.array([t[1], -t[0]])
+    return X - 2.0 * ((X - a) @ n)[:, None] * n
+
+
+@pytest.mark.parametrize("tip_size", [None, 0.01])
+def test_mirror_band_is_symmetric_about_each_crack(tip_size):
+    cracks = [FractureSpec("a", np.array([[-0.9, -0.3], [0.1, 0.1]])),
+              FractureSpec("b", np.array([[0.6, 1.2], [1.3, 0.9]]))]
+    mesh = simplicial_mesh([-2, -2], [2, 2], cracks, 0.5, fracture_size=0.05, mirror=True, tip_size=tip_size)
+    fm = FracturedMesh.build(mesh, cracks)
+    _check_measures(fm)
+    X = mesh.nodes
+    cells = mesh.cell_nodes.values.reshape(-1, 3)
+    centroid = X[cells].mean(axis=1)
+    for spec in cracks:
+        a, b = spec.vertices
+        L = np.linalg.norm(b - a)
+        t = (b - a) / L
+        n = np.array([t[1], -t[0]])
+        loc = np.stack([(centroid - 0.5 * (a + b)) @ t, (centroid - 0.5 * (a + b)) @ n], axis=1)
+        band = (np.abs(loc[:, 0]) < 0.75 * L) & (np.abs(loc[:, 1]) < 0.25 * L)
+        assert band.sum() > 50
+        # every band triangle has a mirror image among the band triangles
+        tri = X[cells[band]]
+        mirrored = _reflect(tri.reshape(-1, 2), a, b).reshape(tri.shape)
+
+        def key(T):  # a triangle as its vertices in lexicographic order, (m, 6)
+            order = np.lexsort((T[..., 1], T[..., 0]), axis=1)
+            return np.take_along_axis(T, order[..., None], axis=1).reshape(len(T), 6)
+
+        dist, _ = cKDTree(key(tri)).query(key(mirrored))
+        assert dist.max() < 1e-9 * L
+        # and no triangle straddles the crack line inside the band
+        side = np.sign(((X[cells[band]] - a) @ n).round(12))
+        assert not np.any((side.max(axis=1) > 0) & (side.min(axis=1) < 0))
+
+
+def test_mirror_band_input_checks():
+    kinked = FractureSpec("k", np.array([[-0.5, 0.0], [0.0, 0.1], [0.5, 0.0]]))
+    with pytest.raises(InputError, match="mesh.mirror.*'k' has 2 segments"):
+        simplicial_mesh([-2, -2], [2, 2], [kinked], 0.5, fracture_size=0.05, mirror=True)
+    edge = FractureSpec("e", np.array([[-1.9, 0.0], [0.0, 0.0]]))
+    with pytest.raises(InputError, match="mesh.mirror.*'e'.*leaves the domain"):
+        simplicial_mesh([-2, -2], [2, 2], [edge], 0.5, fracture_size=0.05, mirror=True)
+    close = [FractureSpec("p", np.array([[-0.5, 0.0], [0.5, 0.0]])),
+             FractureSpec("q", np.array([[-0.5, 0.3], [0.5, 0.3]]))]
+    with pytest.raises(InputError, match="mesh.mirror.*'p' and 'q' overlap"):
+        simplicial_mesh([-2, -2], [2, 2], close, 0.5, fracture_size=0.05, mirror=True)
+    crossing = FractureSpec("x", np.array([[0.0, -0.2], [0.0, -1.5]]))  # a region interface into the band of "p"
+    with pytest.raises(InputError, match="mesh.mirror.*'p' is crossed by the interface 'x'"):
+        simplicial_mesh([-2, -2], [2, 2], [close[0]], 0.5, fracture_size=0.05, mirror=True, interfaces=[crossing])
+    with pytest.raises(InputError, match="mesh.mirror.*2D"):
+        simplicial_mesh([0, 0, 0], [1, 1, 1], [], 0.5, mirror=True)
+    with pytest.raises(InputError, match="mesh.mirror.*true or false"):
+        simplicial_mesh([-2, -2], [2, 2], [close[0]], 0.5, mirror="yes")

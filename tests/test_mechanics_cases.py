@@ -57,13 +57,22 @@ def test_six_fractures_static_shows_all_states(tmp_path, cli):
 
 
 def test_single_crack_against_analytic_profile():
+    """C3 as built in (mirrored band, two-sided bubbles): λ_n exact to the finite-domain floor
+    over the whole crack, slip converging; on a general mesh λ_n is off next to the tips."""
     errs = []
     for fs in (0.1, 0.05):
         case = load_case("single-crack", [f"mesh.fracture_size={fs}", "mesh.size=8"])
         _, st, _, err, _ = solve_static(case)
         errs.append(err)
-    assert errs[1]["slip_L2_rel"] < errs[0]["slip_L2_rel"] < 0.2
-    assert errs[1]["lambda_n_L2_rel_away_from_tips"] < errs[0]["lambda_n_L2_rel_away_from_tips"] < 0.3
+    assert errs[1]["slip_L2_rel"] < errs[0]["slip_L2_rel"] < 0.12
+    assert errs[1]["slip_L2_rel"] < 0.07
+    assert max(e["lambda_n_L2_rel"] for e in errs) < 1e-3
+    general = []
+    for fs in (0.1, 0.05):
+        case = load_case("single-crack", [f"mesh.fracture_size={fs}", "mesh.size=8", "mesh.mirror=false"])
+        general.append(solve_static(case)[3])
+    assert general[1]["lambda_n_L2_rel_away_from_tips"] < general[0]["lambda_n_L2_rel_away_from_tips"] < 0.1
+    assert min(e["lambda_n_L2_rel"] for e in general) > 0.02  # the tip faces: see docs/contact.md
 
 
 def test_convergence_command_writes_table(tmp_path, cli):

@@ -44,6 +44,7 @@ Schema (SI units)::
 from __future__ import annotations
 
 import dataclasses
+import logging
 from dataclasses import dataclass
 
 import numpy as np
@@ -59,6 +60,8 @@ from ..solvers.linear import BACKENDS, LinearSolver
 from ..solvers.newton import NewtonOptions
 from .casefile import CaseFile, Section
 from .exact import SingleCrack, get_solution
+
+log = logging.getLogger("polypore")
 
 
 @dataclass
@@ -183,6 +186,9 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
         ex.done()
     sec = root.section("mechanics", None)
     bubbles = sec.string("bubbles", "one-sided", ("one-sided", "two-sided"))
+    if bubbles == "one-sided" and root.data.get("mesh", {}).get("mirror") is True:
+        log.warning("mesh.mirror = true with one-sided bubbles: the bubbles sit on one side of each fracture, "
+                    "which breaks the mirror symmetry; set mechanics.bubbles = \"two-sided\" to get its benefit")
     stab = sec.number("stabilisation", 1.0, positive=True)
     body = sec.raw("body_force", None)
     body_f = None if body is None else vector_field(body, sec.field("body_force"), d, params, exact,
