@@ -37,16 +37,20 @@ def fracture_profiles(path, names, fracture, s, fields: dict, states, title: str
     rows = len(fields) + 1
     fig, axes = plt.subplots(rows, nf, figsize=(3.2 * nf + 1, 2.0 * rows + 0.6), squeeze=False, sharex="col")
     states = np.asarray(states)
+    scale = _row_scales(fields, reference)
     for j, name in enumerate(names):
         sel = np.flatnonzero(fracture == j)
         order = sel[np.argsort(s[sel])]
         for i, (label, vals) in enumerate(fields.items()):
             ax = axes[i, j]
             ax.plot(s[order], vals[order], ".-", ms=3, lw=0.8, label="polypore")
+            shown = [vals[order]]
             if reference and label in reference and j == 0:
                 sr, vr = reference[label]
                 ax.plot(sr, vr, "k--", lw=1, label="analytic")
                 ax.legend(fontsize=7)
+                shown.append(np.asarray(vr, float))
+            _min_span(ax, np.concatenate(shown), scale[label])
             if j == 0:
                 ax.set_ylabel(label, fontsize=8)
             if i == 0:
@@ -66,6 +70,34 @@ def fracture_profiles(path, names, fracture, s, fields: dict, states, title: str
     if title:
         fig.suptitle(title, fontsize=10)
     save(fig, path)
+
+
+def _row_scales(fields: dict, reference: dict | None) -> dict:
+    """Magnitude (max |value|) of each field; fields in the same unit share the largest."""
+    mag = {}
+    for label, vals in fields.items():
+        v = [np.abs(np.asarray(vals, float))]
+        if reference and label in reference:
+            v.append(np.abs(np.asarray(reference[label][1], float)))
+        v = np.concatenate(v)
+        v = v[np.isfinite(v)]
+        mag[label] = float(v.max()) if v.size else 0.0
+    unit = {label: label[label.rfind("("):] if "(" in label else label for label in fields}
+    return {label: max(mag[k] for k in fields if unit[k] == unit[label]) for label in fields}
+
+
+def _min_span(ax, values, scale, rel=0.05):
+    """Let the y axis span at least ``rel * scale``: variations far below a field's magnitude
+    (a uniform λ_n off by 10^-4, round-off normal jumps of a closed fracture) then show flat
+    instead of blown up to the full axis height."""
+    v = values[np.isfinite(values)]
+    if v.size == 0 or scale <= 0:
+        return
+    lo, hi = float(v.min()), float(v.max())
+    if hi - lo < rel * scale:
+        mid = 0.5 * (lo + hi)
+        ax.set_ylim(mid - rel * scale, mid + rel * scale)
+    ax.ticklabel_format(axis="y", useOffset=False)
 
 
 def state_map(path, mesh, fm_faces, states, title=""):
