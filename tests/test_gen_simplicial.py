@@ -246,54 +246,84 @@ def _reflect(X, a, b):
     return X - 2.0 * ((X - a) @ n)[:, None] * n
 
 
-@pytest.mark.parametrize("tip_size", [None, 0.01])
-def test_mirror_band_is_symmetric_about_each_crack(tip_size):
-    cracks = [FractureSpec("a", np.array([[-0.9, -0.3], [0.1, 0.1]])),
-              FractureSpec("b", np.array([[0.6, 1.2], [1.3, 0.9]]))]
-    mesh = simplicial_mesh([-2, -2], [2, 2], cracks, 0.5, fracture_size=0.05, mirror=True, tip_size=tip_size)
-    fm = FracturedMesh.build(mesh, cracks)
-    _check_measures(fm)
+def _assert_mirrored(mesh, centre, a, b, half_t, half_n):
+    """The triangles inside the rectangle centre ± half_t t ± half_n n (t along a→b) are
+    mapped onto each other by the reflection about the line ab; none straddles the line."""
     X = mesh.nodes
     cells = mesh.cell_nodes.values.reshape(-1, 3)
     centroid = X[cells].mean(axis=1)
+    t = (b - a) / np.linalg.norm(b - a)
+    n = np.array([t[1], -t[0]])
+    inside = (np.abs((centroid - centre) @ t) < half_t) & (np.abs((centroid - centre) @ n) < half_n)
+    assert inside.sum() > 50
+    tri = X[cells[inside]]
+    mirrored = _reflect(tri.reshape(-1, 2), a, b).reshape(tri.shape)
+
+    def key(T):  # a triangle as its vertices in lexicographic order, (m, 6)
+        order = np.lexsort((T[..., 1], T[..., 0]), axis=1)
+        return np.take_along_axis(T, order[..., None], axis=1).reshape(len(T), 6)
+
+    dist, _ = cKDTree(key(tri)).query(key(mirrored))
+    assert dist.max() < 1e-9 * half_t
+    side = np.sign(((tri - a) @ n).round(12))
+    assert not np.any((side.max(axis=1) > 0) & (side.min(axis=1) < 0))
+
+
+@pytest.mark.parametrize("tip_size", [None, 0.01])
+def test_mirror_fractures_band_is_symmetric_about_each_crack(tip_size):
+    cracks = [FractureSpec("a", np.array([[-0.9, -0.3], [0.1, 0.1]])),
+              FractureSpec("b", np.array([[0.6, 1.2], [1.3, 0.9]]))]
+    mesh = simplicial_mesh([-2, -2], [2, 2], cracks, 0.5, fracture_size=0.05, mirror="fractures", tip_size=tip_size)
+    _check_measures(FracturedMesh.build(mesh, cracks))
     for spec in cracks:
         a, b = spec.vertices
         L = np.linalg.norm(b - a)
-        t = (b - a) / L
-        n = np.array([t[1], -t[0]])
-        loc = np.stack([(centroid - 0.5 * (a + b)) @ t, (centroid - 0.5 * (a + b)) @ n], axis=1)
-        band = (np.abs(loc[:, 0]) < 0.75 * L) & (np.abs(loc[:, 1]) < 0.25 * L)
-        assert band.sum() > 50
-        # every band triangle has a mirror image among the band triangles
-        tri = X[cells[band]]
-        mirrored = _reflect(tri.reshape(-1, 2), a, b).reshape(tri.shape)
-
-        def key(T):  # a triangle as its vertices in lexicographic order, (m, 6)
-            order = np.lexsort((T[..., 1], T[..., 0]), axis=1)
-            return np.take_along_axis(T, order[..., None], axis=1).reshape(len(T), 6)
-
-        dist, _ = cKDTree(key(tri)).query(key(mirrored))
-        assert dist.max() < 1e-9 * L
-        # and no triangle straddles the crack line inside the band
-        side = np.sign(((X[cells[band]] - a) @ n).round(12))
-        assert not np.any((side.max(axis=1) > 0) & (side.min(axis=1) < 0))
+        _assert_mirrored(mesh, 0.5 * (a + b), a, b, 0.75 * L, 0.25 * L)
 
 
-def test_mirror_band_input_checks():
+def test_mirror_tips_on_a_network():
+    """Patches at the tips of a kinked fracture and of one reaching the boundary; a T-junction
+    end and a boundary end get none; a patch shrinks to keep clear of a nearby fracture."""
+    from polypore.mesh.generators.mirror import mirror_regions
+
+    fr = [FractureSpec("kinked", np.array([[-1.5, 0.0], [-0.5, 0.2], [0.5, 0.0]])),
+          FractureSpec("edge", np.array([[1.0, -1.0], [2.0, -1.5]])),        # ends on the boundary x = 2
+          FractureSpec("tee", np.array([[-1.0, -1.0], [-1.0, 0.1]])),       # ends on "kinked"
+          FractureSpec("near", np.array([[0.55, 0.2], [1.2, 0.9]]))]       # its tip 0.21 from kinked's
+    regions = mirror_regions("tips", fr, [-2, -2], [2, 2], fracture_size=0.02)
+    labels = sorted(r.label.split(" at ")[0] for r in regions)
+    assert labels == ["tip of 'edge'", "tip of 'kinked'", "tip of 'kinked'", "tip of 'near'", "tip of 'near'",
+                      "tip of 'tee'"]
+    half = {r.label: np.linalg.norm(r.upper[1] - r.upper[0]) / 2 for r in regions}
+    kinked_right = half["tip of 'kinked' at [0.5, 0.0]"]
+    assert kinked_right < 0.1 * np.hypot(1.0, 0.2) - 1e-6  # shrunk: "near" starts 0.21 m away
+    mesh = simplicial_mesh([-2, -2], [2, 2], fr, 0.5, fracture_size=0.02, mirror="tips")
+    _check_measures(FracturedMesh.build(mesh, fr))
+    for r in regions:
+        centre = r.upper[0] + 0.5 * (r.upper[1] - r.upper[0])
+        h = np.linalg.norm(r.upper[1] - r.upper[0]) / 2
+        _assert_mirrored(mesh, centre, r.upper[0], r.upper[1], 0.9 * h, 0.9 * h)
+
+
+def test_mirror_input_checks():
     kinked = FractureSpec("k", np.array([[-0.5, 0.0], [0.0, 0.1], [0.5, 0.0]]))
     with pytest.raises(InputError, match="mesh.mirror.*'k' has 2 segments"):
-        simplicial_mesh([-2, -2], [2, 2], [kinked], 0.5, fracture_size=0.05, mirror=True)
+        simplicial_mesh([-2, -2], [2, 2], [kinked], 0.5, fracture_size=0.05, mirror="fractures")
     edge = FractureSpec("e", np.array([[-1.9, 0.0], [0.0, 0.0]]))
     with pytest.raises(InputError, match="mesh.mirror.*'e'.*leaves the domain"):
-        simplicial_mesh([-2, -2], [2, 2], [edge], 0.5, fracture_size=0.05, mirror=True)
+        simplicial_mesh([-2, -2], [2, 2], [edge], 0.5, fracture_size=0.05, mirror="fractures")
     close = [FractureSpec("p", np.array([[-0.5, 0.0], [0.5, 0.0]])),
-             FractureSpec("q", np.array([[-0.5, 0.3], [0.5, 0.3]]))]
-    with pytest.raises(InputError, match="mesh.mirror.*'p' and 'q' overlap"):
-        simplicial_mesh([-2, -2], [2, 2], close, 0.5, fracture_size=0.05, mirror=True)
+             FractureSpec("q", np.array([[-0.5, 0.4], [0.5, 0.4]]))]
+    with pytest.raises(InputError, match="mesh.mirror.*'p'.*'q' overlap"):
+        simplicial_mesh([-2, -2], [2, 2], close, 0.5, fracture_size=0.05, mirror="fractures")
     crossing = FractureSpec("x", np.array([[0.0, -0.2], [0.0, -1.5]]))  # a region interface into the band of "p"
-    with pytest.raises(InputError, match="mesh.mirror.*'p' is crossed by the interface 'x'"):
-        simplicial_mesh([-2, -2], [2, 2], [close[0]], 0.5, fracture_size=0.05, mirror=True, interfaces=[crossing])
+    with pytest.raises(InputError, match="mesh.mirror.*'p' meets 'x'"):
+        simplicial_mesh([-2, -2], [2, 2], [close[0]], 0.5, fracture_size=0.05, mirror="fractures",
+                        interfaces=[crossing])
     with pytest.raises(InputError, match="mesh.mirror.*2D"):
-        simplicial_mesh([0, 0, 0], [1, 1, 1], [], 0.5, mirror=True)
-    with pytest.raises(InputError, match="mesh.mirror.*true or false"):
+        simplicial_mesh([0, 0, 0], [1, 1, 1], [], 0.5, mirror="tips")
+    with pytest.raises(InputError, match="mesh.mirror.*unknown value 'yes'.*none, tips, fractures"):
         simplicial_mesh([-2, -2], [2, 2], [close[0]], 0.5, mirror="yes")
+    through = FractureSpec("t", np.array([[-2.0, 0.0], [2.0, 0.5]]))
+    with pytest.raises(InputError, match="mesh.mirror.*no fracture tip"):
+        simplicial_mesh([-2, -2], [2, 2], [through], 0.5, mirror="tips")

@@ -69,7 +69,7 @@ def test_single_crack_against_analytic_profile():
     assert max(e["lambda_n_L2_rel"] for e in errs) < 1e-3
     general = []
     for fs in (0.1, 0.05):
-        case = load_case("single-crack", [f"mesh.fracture_size={fs}", "mesh.size=8", "mesh.mirror=false"])
+        case = load_case("single-crack", [f"mesh.fracture_size={fs}", "mesh.size=8", "mesh.mirror=none"])
         general.append(solve_static(case)[3])
     assert general[1]["lambda_n_L2_rel_away_from_tips"] < general[0]["lambda_n_L2_rel_away_from_tips"] < 0.1
     assert min(e["lambda_n_L2_rel"] for e in general) > 0.02  # the tip faces: see docs/contact.md

@@ -186,8 +186,8 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
         ex.done()
     sec = root.section("mechanics", None)
     bubbles = sec.string("bubbles", "one-sided", ("one-sided", "two-sided"))
-    if bubbles == "one-sided" and root.data.get("mesh", {}).get("mirror") is True:
-        log.warning("mesh.mirror = true with one-sided bubbles: the bubbles sit on one side of each fracture, "
+    if bubbles == "one-sided" and root.data.get("mesh", {}).get("mirror", "none") != "none":
+        log.warning("mesh.mirror with one-sided bubbles: the bubbles sit on one side of each fracture, "
                     "which breaks the mirror symmetry; set mechanics.bubbles = \"two-sided\" to get its benefit")
     stab = sec.number("stabilisation", 1.0, positive=True)
     body = sec.raw("body_force", None)

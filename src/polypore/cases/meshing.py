@@ -11,8 +11,9 @@ Schema (all lengths in m)::
     fracture_size = 0.1        # simplicial/agglomerated: size on fractures (default: size)
     grading = 0.4              # simplicial/agglomerated: size growth per unit distance from the fractures
     tip_size = 0.001           # simplicial, 2D: size at fracture tips (default: no tip refinement)
-    mirror = false             # simplicial, 2D: mesh symmetric about each straight fracture, in a band
-                               #   around it (exact λ_n next to crack tips with two-sided bubbles)
+    mirror = "none"            # simplicial, 2D: "tips" | "fractures": mesh symmetric about the fracture
+                               #   line around each tip / along each straight fracture (λ_n free of
+                               #   crack-tip error with two-sided bubbles)
     rounds = 2                 # agglomerated: rounds of pairwise merging
     perturb = 0.0              # random node perturbation, fraction of the local edge length
     seed = 0
@@ -49,6 +50,7 @@ import numpy as np
 
 from ..core.errors import InputError
 from ..mesh import FracturedMesh, FractureSpec
+from ..mesh.generators.mirror import MODES as MIRROR_MODES
 from ..mesh.mesh import with_boundary_parts, with_regions
 from .casefile import CaseFile, Section
 
@@ -253,7 +255,7 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
         fsize = sec.number("fracture_size", size, positive=True)
         grading = sec.number("grading", 0.4, positive=True)
         tip = sec.number("tip_size", None, positive=True)
-        mirror = sec.boolean("mirror", False)
+        mirror = sec.string("mirror", "none", MIRROR_MODES)
         mesh = simplicial_mesh(lower, upper, specs, size, fracture_size=fsize, interfaces=interfaces, seed=seed,
                                grading=grading, tip_size=tip, mirror=mirror)
     elif gen == "voronoi":

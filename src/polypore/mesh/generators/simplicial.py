@@ -20,7 +20,7 @@ from ..build import mesh_from_cells
 from ..fractures import validate_spec
 from ..mesh import Mesh
 from ..msh import gmsh_last_error, gmsh_session
-from .mirror_band import add_band_surfaces, band_halves, set_mirror
+from .mirror import MODES, add_region_surfaces, mirror_regions, set_mirror
 
 log = logging.getLogger("polypore")
 
@@ -30,7 +30,7 @@ GRADING = 0.4
 
 def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_size: float | None = None,
                     interfaces=(), seed: int = 0, grading: float = GRADING,
-                    tip_size: float | None = None, mirror: bool = False) -> Mesh:
+                    tip_size: float | None = None, mirror: str = "none") -> Mesh:
     """Triangulate a rectangle / tetrahedralise a box, conforming to fractures and interfaces.
 
     Parameters
@@ -47,9 +47,10 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
         linearly (slope ``grading``, default ``GRADING``) to ``size`` away from them.
     tip_size : float, m, optional
         2D only: target size at the fracture ends inside the box (crack tips), graded the same way.
-    mirror : bool
-        2D only: mesh a band around every (straight, isolated) fracture symmetrically about
-        its line (see :mod:`.mirror_band`: exact normal multipliers at crack tips).
+    mirror : {"none", "tips", "fractures"}
+        2D only: mesh a patch around every fracture tip ("tips") or a band around every
+        straight fracture ("fractures") symmetrically about the fracture line (see
+        :mod:`.mirror`: no crack-tip error in the normal multipliers).
     interfaces : sequence of FractureSpec
         Further lines/polygons the mesh must conform to (region boundaries), meshed at ``size``.
     seed : int
@@ -92,9 +93,9 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
         validate_spec(s, dim, box)
     for s in interfaces:
         validate_spec(s, dim, box)
-    if not isinstance(mirror, bool):
-        raise InputError("mesh.mirror", f"must be true or false, got {mirror!r}")
-    halves = band_halves(fractures, lower, upper, interfaces) if mirror else []
+    if mirror not in MODES:
+        raise InputError("mesh.mirror", f"unknown value {mirror!r}; allowed: {', '.join(MODES)}")
+    regions = mirror_regions(mirror, fractures, lower, upper, interfaces, fsize)
     span = float(np.max(upper - lower))
     est = np.prod(upper - lower) / size ** dim
     if est > 5e7:
@@ -113,7 +114,7 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
     with gmsh_session(opts) as gmsh:
         try:
             nodes, conn = _generate(gmsh, dim, lower, upper, fractures, interfaces, float(size), fsize,
-                                    float(grading), tip_size, halves)
+                                    float(grading), tip_size, regions)
         except (InputError, MeshError):
             raise
         except Exception as exc:
@@ -161,7 +162,7 @@ def _tip_points(gmsh, fractures, lower, upper) -> list[int]:
 
 
 def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, grading=GRADING, tip_size=None,
-              halves=()):
+              regions=()):
     occ = gmsh.model.occ
     ext = upper - lower
     if dim == 2:
@@ -173,17 +174,17 @@ def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, gradi
         ents = _add_spec(occ, s, dim)
         tools += ents
         owner += [i] * len(ents)
-    bands = add_band_surfaces(occ, halves)
+    mirrored = add_region_surfaces(occ, regions)
     frac_ents = set()
     if tools:
-        _, out_map = occ.fragment(domain, tools + bands)
+        _, out_map = occ.fragment(domain, tools + mirrored)
         # children of every tool; the first map entry belongs to the domain
         for i, children in zip(owner, out_map[1:]):
             if i < len(fractures):
                 frac_ents.update(tag for d, tag in children if d == dim - 1)
     occ.synchronize()
-    if bands:
-        set_mirror(gmsh, halves, out_map[1 + len(tools):])
+    if mirrored:
+        set_mirror(gmsh, regions, out_map[1 + len(tools):])
 
     field = gmsh.model.mesh.field
     if frac_ents and fsize < size:
