@@ -1,7 +1,7 @@
 """C4 mesh self-convergence: (T⁺ − T⁻)/2 and the jump along F1–F3 at the final time against
 the finest mesh (issue 5).
 
-    .venv/bin/python benchmarks/c4_convergence.py [--levels 4] [--out docs/c4_convergence]
+    .venv/bin/python benchmarks/c4_convergence.py [--levels 4] [--out docs/c4_convergence] [--set KEY=VALUE ...]
 
 Level k uses mesh.size = 0.1/2^k and mesh.fracture_size = 0.04/2^k with C4's time step
 (20 s, T = 2000 s). The finest level is the reference. Fracture quantities are compared as
@@ -34,9 +34,9 @@ from polypore.models.fracture_geometry import arc_length
 FRACTURES = ("F1", "F2", "F3")
 
 
-def solve_level(k: int, linear: str):
+def solve_level(k: int, linear: str, overrides=()):
     case = load_case("dfm-2d", [f"mesh.size={0.1 / 2 ** k}", f"mesh.fracture_size={0.04 / 2 ** k}",
-                                f"solver.linear={linear}"])
+                                f"solver.linear={linear}", *overrides])
     fm = build_fractured_mesh(case)
     model, fs, _ = poro_setup(case, fm)
     st = model.initial_state(fs.initial_pressure)
@@ -88,13 +88,15 @@ def main():
     ap.add_argument("--levels", type=int, default=4)
     ap.add_argument("--linear", default="auto")
     ap.add_argument("--out", default="docs/c4_convergence")
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="extra case override for every level, e.g. mesh.mirror=tips")
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     runs = []
     for k in range(args.levels):
         t0 = time.perf_counter()
-        r = solve_level(k, args.linear)
+        r = solve_level(k, args.linear, args.set)
         r["seconds"] = time.perf_counter() - t0
         runs.append(r)
         print(f"level {k}: {r['cells']} cells, h_frac {r['h_frac']:.4g} m, {r['newton_total']} Newton iterations, "
@@ -124,7 +126,8 @@ def main():
                         for key in keys}})
     hs = [r["h_frac"] for r in rows]
     rates = {key: fit_rate(hs, [r[key] for r in rows]) for key in rows[0] if key.endswith(("_rel", "_tips"))}
-    result = {"reference": {"cells": ref["cells"], "h_frac": ref["h_frac"], "seconds": ref["seconds"]},
+    result = {"overrides": args.set,
+              "reference": {"cells": ref["cells"], "h_frac": ref["h_frac"], "seconds": ref["seconds"]},
               "levels": rows, "rates": rates}
     (out / "c4_convergence.json").write_text(json.dumps(result, indent=2))
     from polypore.io.plots import convergence_plot

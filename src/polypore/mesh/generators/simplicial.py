@@ -20,7 +20,7 @@ from ..build import mesh_from_cells
 from ..fractures import validate_spec
 from ..mesh import Mesh
 from ..msh import gmsh_last_error, gmsh_session
-from .mirror import MODES, add_region_surfaces, mirror_regions, set_mirror
+from .mirror import add_region_surfaces, mirror_regions, set_mirror
 
 log = logging.getLogger("polypore")
 
@@ -93,8 +93,6 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
         validate_spec(s, dim, box)
     for s in interfaces:
         validate_spec(s, dim, box)
-    if mirror not in MODES:
-        raise InputError("mesh.mirror", f"unknown value {mirror!r}; allowed: {', '.join(MODES)}")
     regions = mirror_regions(mirror, fractures, lower, upper, interfaces, fsize)
     span = float(np.max(upper - lower))
     est = np.prod(upper - lower) / size ** dim
