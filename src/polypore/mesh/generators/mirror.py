@@ -103,8 +103,9 @@ def mirror_regions(mode: str, fractures, lower, upper, interfaces=(), fracture_s
         raise InputError("mesh.mirror", "mirror-symmetric meshing is available for 2D meshes only")
     if not fractures:
         raise InputError("mesh.mirror", "needs at least one fracture to mirror the mesh about")
-    segments = [(s.name, a, b) for s in list(fractures) + list(interfaces)
-                for a, b in zip(np.asarray(s.vertices, float)[:-1], np.asarray(s.vertices, float)[1:])]
+    # (owner, segment number within it, name, a, b) for every fracture and interface segment
+    segments = [(i, j, s.name, a, b) for i, s in enumerate(list(fractures) + list(interfaces))
+                for j, (a, b) in enumerate(zip(np.asarray(s.vertices, float)[:-1], np.asarray(s.vertices, float)[1:]))]
     if mode == "fractures":
         return _bands(fractures, lower, upper, segments)
     return _tips(fractures, lower, upper, segments, fracture_size)
@@ -112,7 +113,7 @@ def mirror_regions(mode: str, fractures, lower, upper, interfaces=(), fracture_s
 
 def _bands(fractures, lower, upper, segments):
     regions = []
-    for s in fractures:
+    for i, s in enumerate(fractures):
         V = np.asarray(s.vertices, float)
         if V.shape[0] != 2:
             raise InputError("mesh.mirror", f"fracture {s.name!r} has {V.shape[0] - 1} segments; \"fractures\" "
@@ -126,8 +127,8 @@ def _bands(fractures, lower, upper, segments):
                              f"beyond its tips and to each side) leaves the domain {lower.tolist()}–"
                              f"{upper.tolist()}; use mirror = \"tips\" for fractures that end near the boundary")
         quad = np.vstack([r.lower[:2], r.upper[2:]])
-        for name, a, b in segments:
-            if name != s.name and _convex_overlap(np.array([a, b]), quad):
+        for owner, _, name, a, b in segments:
+            if owner != i and _convex_overlap(np.array([a, b]), quad):
                 raise InputError("mesh.mirror", f"the mirror band around fracture {s.name!r} meets {name!r}; "
                                  "use mirror = \"tips\" for fractures this close")
         for other in regions:
@@ -141,12 +142,13 @@ def _bands(fractures, lower, upper, segments):
 def _tips(fractures, lower, upper, segments, fracture_size):
     regions = []
     tol = 1e-9 * float(np.max(upper - lower))
-    for s in fractures:
+    for i, s in enumerate(fractures):
         V = np.asarray(s.vertices, float)
         for end, prev, k in ((V[-1], V[-2], len(V) - 2), (V[0], V[1], 0)):
             if np.any(end <= lower + tol) or np.any(end >= upper - tol):
                 continue  # on the boundary: not a tip
-            dist = [_point_segment(end, a, b) for _, a, b in _own_last(segments, s.name, k)]
+            # everything but the segment the tip ends
+            dist = [_point_segment(end, a, b) for owner, j, _, a, b in segments if (owner, j) != (i, k)]
             if dist and min(dist) <= tol:
                 continue  # ends on another fracture or interface: a junction, not a tip
             clearance = min([*dist, *(end - lower), *(upper - end)])
@@ -162,19 +164,6 @@ def _tips(fractures, lower, upper, segments, fracture_size):
     if not regions:
         raise InputError("mesh.mirror", "\"tips\" found no fracture tip inside the domain to mirror the mesh at")
     return regions
-
-
-def _own_last(segments, name, k):
-    """Every segment except segment k of fracture ``name`` (the one the tip ends)."""
-    out, j = [], 0
-    for seg in segments:
-        if seg[0] == name:
-            if j != k:
-                out.append(seg)
-            j += 1
-        else:
-            out.append(seg)
-    return out
 
 
 def _point_segment(P, a, b) -> float:
