@@ -276,7 +276,7 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
                                grading=grading)
         keep = build_network(base, list(specs) + interfaces).faces
         mesh = agglomerate(base, keep, rounds=rounds, seed=seed)
-    log.info("generated a %s mesh of %d cells in %.2f s", gen, mesh.n_cells, time.perf_counter() - t0)
+    log.info("%s mesh generator: %d cells in %.2f s", gen, mesh.n_cells, time.perf_counter() - t0)
     if amp > 0:
         from ..mesh.generators.perturb import perturb
 
