@@ -73,6 +73,13 @@ def test_single_crack_against_analytic_profile():
         general.append(solve_static(case)[3])
     assert general[1]["lambda_n_L2_rel_away_from_tips"] < general[0]["lambda_n_L2_rel_away_from_tips"] < 0.1
     assert min(e["lambda_n_L2_rel"] for e in general) > 0.02  # the tip faces: see docs/contact.md
+    # mirrored patches at the tips only: λ_n over the whole crack converges
+    tips = []
+    for fs in (0.1, 0.05):
+        case = load_case("single-crack", [f"mesh.fracture_size={fs}", "mesh.size=8", "mesh.mirror=tips"])
+        tips.append(solve_static(case)[3])
+    assert tips[1]["lambda_n_L2_rel"] < 0.7 * tips[0]["lambda_n_L2_rel"]
+    assert tips[1]["lambda_n_L2_rel"] < 0.5 * general[1]["lambda_n_L2_rel"]
 
 
 def test_convergence_command_writes_table(tmp_path, cli):
