@@ -142,16 +142,20 @@ def _bands(fractures, lower, upper, segments):
 def _tips(fractures, lower, upper, segments, fracture_size):
     regions = []
     tol = 1e-9 * float(np.max(upper - lower))
+    key = np.array([(owner, j) for owner, j, _, _, _ in segments])
+    A = np.array([a for *_, a, _ in segments])
+    B = np.array([b for *_, b in segments])
     for i, s in enumerate(fractures):
         V = np.asarray(s.vertices, float)
         for end, prev, k in ((V[-1], V[-2], len(V) - 2), (V[0], V[1], 0)):
             if np.any(end <= lower + tol) or np.any(end >= upper - tol):
                 continue  # on the boundary: not a tip
-            # everything but the segment the tip ends
-            dist = [_point_segment(end, a, b) for owner, j, _, a, b in segments if (owner, j) != (i, k)]
-            if dist and min(dist) <= tol:
+            # distance to everything but the segment the tip ends
+            other = (key[:, 0] != i) | (key[:, 1] != k)
+            dist = _point_segments(end, A[other], B[other])
+            if dist.size and dist.min() <= tol:
                 continue  # ends on another fracture or interface: a junction, not a tip
-            clearance = min([*dist, *(end - lower), *(upper - end)])
+            clearance = min(float(dist.min(initial=np.inf)), *(end - lower), *(upper - end))
             seg_len = float(np.linalg.norm(end - prev))
             a = min(TIP * seg_len, CLEAR * clearance)
             t, n = _frame(prev, end)
@@ -166,10 +170,11 @@ def _tips(fractures, lower, upper, segments, fracture_size):
     return regions
 
 
-def _point_segment(P, a, b) -> float:
-    ab = b - a
-    t = np.clip((P - a) @ ab / max(ab @ ab, 1e-300), 0.0, 1.0)
-    return float(np.linalg.norm(P - a - t * ab))
+def _point_segments(P, A, B) -> np.ndarray:
+    """(m,) distances from the point P (2,) to the segments [A_j, B_j] (m, 2)."""
+    AB = B - A
+    t = np.clip(np.einsum("md,md->m", P - A, AB) / np.maximum(np.einsum("md,md->m", AB, AB), 1e-300), 0.0, 1.0)
+    return np.linalg.norm(P - A - t[:, None] * AB, axis=1)
 
 
 def _convex_overlap(P: np.ndarray, Q: np.ndarray) -> bool:
