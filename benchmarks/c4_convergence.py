@@ -112,18 +112,21 @@ def main():
         # "smooth": also farther than 5 % of the length from a kink (F1's), where the traction is singular too
         parts = ("all", "away", "smooth")
         num = {(key, part): 0.0 for key in keys for part in parts}
+        at_kinks = {key: 0.0 for key in keys}   # squared error on the faces near a kink
         den = dict(num)
         for name in FRACTURES:
             p = r["profiles"][name]
             q = project(ref["profiles"][name], p["s"], p["area"])
             length = float(np.max(p["s"] + p["area"] / 2))
             away = (p["s"] > 0.1 * length) & (p["s"] < 0.9 * length)
-            smooth = away.copy()
+            near_kink = np.zeros(len(p["s"]), bool)
             for sk in p["kinks"]:
-                smooth &= np.abs(p["s"] - sk) > 0.05 * length
+                near_kink |= np.abs(p["s"] - sk) <= 0.05 * length
+            smooth = away & ~near_kink
             for key in keys:
                 e2 = p["area"] * np.sum((p[key] - q[key]) ** 2, axis=1)
                 r2 = p["area"] * np.sum(q[key] ** 2, axis=1)
+                at_kinks[key] += float(np.sum(e2[near_kink]))
                 for part, m in (("all", slice(None)), ("away", away), ("smooth", smooth)):
                     num[key, part] += float(np.sum(e2[m]))
                     den[key, part] += float(np.sum(r2[m]))
@@ -133,7 +136,8 @@ def main():
                      **{f"{key}_L2_rel_away_from_tips": np.sqrt(num[key, "away"] / den[key, "away"])
                         for key in keys},
                      **{f"{key}_L2_rel_away_from_tips_and_kinks": np.sqrt(num[key, "smooth"] / den[key, "smooth"])
-                        for key in keys}})
+                        for key in keys},
+                     **{f"{key}_error_share_at_kinks": at_kinks[key] / num[key, "all"] for key in keys}})
     hs = [r["h_frac"] for r in rows]
     rates = {key: fit_rate(hs, [r[key] for r in rows]) for key in rows[0] if "_L2_rel" in key}
     result = {"overrides": args.set,
