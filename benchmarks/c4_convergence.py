@@ -12,7 +12,8 @@ two cells of each face (the discrete T⁺ and −T⁻ differ); the multiplier λ
 too. The error is plotted against the largest fracture face size, as on the slides. The same
 errors are also given away from the fracture tips (faces within 10 % of the length from an end
 left out), as for C3, and away from the tips and F1's kink (faces within 5 % of the length from
-it left out too: the traction is singular at the kink and 95 % of λ's error sits on its two faces).
+it left out too: the traction is singular at the kink, where most of λ's error sits; the share of each
+error on those faces is reported as well).
 """
 
 from __future__ import annotations
