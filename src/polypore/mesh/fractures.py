@@ -131,11 +131,17 @@ def validate_spec(spec: FractureSpec, dim: int, box: np.ndarray | None = None, t
     return {"vertices": V, "normal": n, "centre": c, "e1": e1, "e2": e2, "poly2d": P, "measure": area}
 
 
+def segment_distances(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """(n, m) distances (m) from points P (n, d) to the segments [A_j, B_j] (m, d)."""
+    AB = B - A
+    L2 = np.maximum(np.einsum("md,md->m", AB, AB), 1e-300)
+    t = np.clip(np.einsum("nmd,md->nm", P[:, None, :] - A[None], AB) / L2, 0.0, 1.0)
+    return np.linalg.norm(P[:, None, :] - (A[None] + t[..., None] * AB[None]), axis=2)
+
+
 def _point_segment_distance(X, a, b):
-    t = b - a
-    L2 = t @ t
-    s = np.clip(((X - a) @ t) / L2, 0.0, 1.0)
-    return np.linalg.norm(X - a - s[:, None] * t, axis=1)
+    """(n,) distances from points X (n, d) to the segment [a, b]."""
+    return segment_distances(X, a[None], b[None])[:, 0]
 
 
 def _inside_polygon(P, poly, tol):

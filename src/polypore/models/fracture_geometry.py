@@ -5,16 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..mesh import FracturedMesh
-from ..mesh.fractures import TIP
-
-
-def _segment_distance(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
-    """(n, m) distances from points P (n, d) to segments [A_j, B_j] (m, d)."""
-    AB = B - A
-    L2 = np.maximum(np.einsum("md,md->m", AB, AB), 1e-300)
-    t = np.clip(np.einsum("nmd,md->nm", P[:, None, :] - A[None], AB) / L2, 0.0, 1.0)
-    Q = A[None] + t[..., None] * AB[None]
-    return np.linalg.norm(P[:, None, :] - Q, axis=2)
+from ..mesh.fractures import TIP, segment_distances
 
 
 def tip_distance(fm: FracturedMesh, chunk: int = 4096) -> np.ndarray:
@@ -40,7 +31,7 @@ def tip_distance(fm: FracturedMesh, chunk: int = 4096) -> np.ndarray:
         faces = np.flatnonzero(net.fracture == i)
         for s in range(0, faces.size, chunk):
             f = faces[s:s + chunk]
-            out[f] = _segment_distance(c[f], A, B).min(axis=1)
+            out[f] = segment_distances(c[f], A, B).min(axis=1)
     return out
 
 
@@ -64,7 +55,7 @@ def arc_length(fm: FracturedMesh) -> np.ndarray:
             continue
         seglen = np.linalg.norm(np.diff(V, axis=0), axis=1)
         cum = np.concatenate([[0.0], np.cumsum(seglen)])
-        dist = _segment_distance(c[f], V[:-1], V[1:])
+        dist = segment_distances(c[f], V[:-1], V[1:])
         k = dist.argmin(axis=1)
         out[f] = cum[k] + np.linalg.norm(c[f] - V[k], axis=1)
     return out

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ...core.errors import InputError
+from ..fractures import segment_distances
 
 log = logging.getLogger("polypore")
 
@@ -152,7 +153,7 @@ def _tips(fractures, lower, upper, segments, fracture_size):
                 continue  # on the boundary: not a tip
             # distance to everything but the segment the tip ends
             other = (key[:, 0] != i) | (key[:, 1] != k)
-            dist = _point_segments(end, A[other], B[other])
+            dist = segment_distances(end[None], A[other], B[other])[0]
             if dist.size and dist.min() <= tol:
                 continue  # ends on another fracture or interface: a junction, not a tip
             clearance = min(float(dist.min(initial=np.inf)), *(end - lower), *(upper - end))
@@ -168,13 +169,6 @@ def _tips(fractures, lower, upper, segments, fracture_size):
     if not regions:
         raise InputError("mesh.mirror", "\"tips\" found no fracture tip inside the domain to mirror the mesh at")
     return regions
-
-
-def _point_segments(P, A, B) -> np.ndarray:
-    """(m,) distances from the point P (2,) to the segments [A_j, B_j] (m, 2)."""
-    AB = B - A
-    t = np.clip(np.einsum("md,md->m", P - A, AB) / np.maximum(np.einsum("md,md->m", AB, AB), 1e-300), 0.0, 1.0)
-    return np.linalg.norm(P - A - t[:, None] * AB, axis=1)
 
 
 def _convex_overlap(P: np.ndarray, Q: np.ndarray) -> bool:
