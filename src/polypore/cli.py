@@ -1,19 +1,24 @@
 """The ``polypore`` command (interface.md): ``cases``, ``mesh``, ``run`` and ``convergence``.
 
-Exit status: 0 success, 1 a run failed, 2 bad input (the message names the field).
+Exit status: 0 success, 1 a run failed, 2 bad input (the message names the field), 130 and
+143 interrupted by SIGINT and SIGTERM. Output folders follow one rule
+(:func:`polypore.io.atomic.run_directory`): a finished command leaves a complete result,
+anything else only ``failed.json`` with the reason.
 """
 
 from __future__ import annotations
 
 import argparse
-import json
 import logging
+import signal
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from . import __version__
 from .core.errors import InputError, PolyporeError
+from .io.atomic import run_directory
 
 log = logging.getLogger("polypore")
 
@@ -32,14 +37,60 @@ def _setup_logging(quiet: bool) -> None:
     log.addHandler(handler)
 
 
-def _out_dir(args, case_name: str) -> Path:
-    out = Path(args.out) if args.out else Path("results") / case_name
-    if out.exists() and not out.is_dir():
-        raise InputError("--out", f"{str(out)!r} exists and is not a directory")
-    if out.is_dir() and any(out.iterdir()) and not args.force:
-        raise InputError("--out", f"directory {str(out)!r} is not empty; choose another --out or pass --force")
-    out.mkdir(parents=True, exist_ok=True)
-    return out
+class Terminated(BaseException):
+    """Raised by the SIGTERM handler: a BaseException, like KeyboardInterrupt, so that no
+    ``except Exception`` on the way swallows it and the run directory records the failure."""
+
+    def __init__(self, signum: int):
+        self.signal = signal.Signals(signum).name
+        super().__init__(f"terminated by {self.signal}")
+
+
+_SIGNALLED: list[int] = []   # signals received while the command runs
+
+
+def _on_signal(signum, frame):
+    _SIGNALLED.append(signum)
+    raise KeyboardInterrupt if signum == signal.SIGINT else Terminated(signum)
+
+
+@contextmanager
+def _signals_raise():
+    """While a command runs, SIGINT and SIGTERM raise KeyboardInterrupt and :class:`Terminated`
+    and are remembered. Only default dispositions are replaced: a caller that ignores a signal
+    (a background job ignores SIGINT) or handles it keeps its choice."""
+    _SIGNALLED.clear()
+    previous = {}
+    try:
+        for sig, default in ((signal.SIGINT, signal.default_int_handler), (signal.SIGTERM, signal.SIG_DFL)):
+            if signal.getsignal(sig) == default:
+                previous[sig] = signal.signal(sig, _on_signal)
+    except ValueError:  # not the main thread: signals cannot be handled here
+        pass
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
+@contextmanager
+def _output(args, default_name: str):
+    """Claim the output folder (``--out`` or results/<default_name>) for the block: yields
+    (folder, staging folder); see :func:`polypore.io.atomic.run_directory`."""
+    out = Path(args.out) if args.out else Path("results") / default_name
+    case = Path(args.case)
+    if args.force and case.is_file() and out.resolve() in case.resolve().parents:
+        # the folder is replaced as a whole: it must not hold the case being run
+        raise InputError("--out", f"{str(out)!r} holds the case file {args.case!r}, which --force would delete; "
+                         "choose another --out")
+    with run_directory(out, force=args.force) as stage:
+        yield out, stage
+        if _SIGNALLED:
+            # the signal's exception was lost: CPython drops exceptions raised inside a __del__
+            # or a weakref callback; the run was still asked to stop and must not look complete
+            sig = _SIGNALLED[0]
+            raise KeyboardInterrupt if sig == signal.SIGINT else Terminated(sig)
 
 
 def cmd_cases(args) -> int:
@@ -58,10 +109,10 @@ def cmd_mesh(args) -> int:
     from .io.mesh_output import write_mesh_outputs
 
     case = load_case(args.case, args.set or [])
-    t0 = time.perf_counter()
-    fm = build_fractured_mesh(case)
-    out = _out_dir(args, case.name)
-    report = write_mesh_outputs(out, case, fm, seconds=time.perf_counter() - t0)
+    with _output(args, case.name) as (out, stage):
+        t0 = time.perf_counter()
+        fm = build_fractured_mesh(case)
+        report = write_mesh_outputs(stage, case, fm, seconds=time.perf_counter() - t0)
     _print_mesh_report(report)
     print(f"wrote {out}/: mesh.vtu, fractures.vtu, mesh.json, case.toml")
     return 0
@@ -72,8 +123,8 @@ def cmd_run(args) -> int:
     from .cases.run import run_case
 
     case = load_case(args.case, args.set or [])
-    out = _out_dir(args, case.name)
-    summary = run_case(case, out)
+    with _output(args, case.name) as (out, stage):
+        summary = run_case(case, stage)
     st = summary["steps"][-1]
     line = f"case {case.name}: {summary['mesh']['cells']} cells, {summary['mesh']['unknowns']} unknowns; "
     if "newton_iterations" in st:
@@ -91,8 +142,8 @@ def cmd_convergence(args) -> int:
     from .cases.convergence import format_table, run_convergence
 
     case = load_case(args.case, args.set or [])
-    out = _out_dir(args, f"{case.name}-convergence")
-    result = run_convergence(case, args.levels, out)
+    with _output(args, f"{case.name}-convergence") as (out, stage):
+        result = run_convergence(case, args.levels, stage)
     print(format_table(result))
     print(f"wrote {out}/: convergence.csv, convergence.json, convergence.png")
     return 0
@@ -125,7 +176,8 @@ def _case_arguments(p, default_out: str) -> None:
     p.add_argument("case", metavar="CASE", help="built-in case name or path to a TOML case file")
     p.add_argument("--out", metavar="DIR", help=f"output directory (default: {default_out})")
     p.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field, e.g. mesh.size=0.1")
-    p.add_argument("--force", action="store_true", help="write into a non-empty output directory")
+    p.add_argument("--force", action="store_true", help="replace a previous polypore result in the output "
+                   "directory (a folder of other files is refused)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -157,16 +209,21 @@ def main(argv=None) -> int:
         return 2
     _setup_logging(args.quiet)
     try:
-        return args.func(args)
+        with _signals_raise():
+            return args.func(args)
     except InputError as exc:
         print(f"polypore: error: {exc}", file=sys.stderr)
         return 2
     except PolyporeError as exc:
         print(f"polypore: run failed: {exc}", file=sys.stderr)
         return exc.exit_status
-    except KeyboardInterrupt:
-        print("polypore: interrupted", file=sys.stderr)
-        return 130
+    except (KeyboardInterrupt, Terminated) as exc:
+        # one line, no traceback: the reason and, once the output folder was claimed, where it is recorded
+        where = getattr(exc, "failed_json", None)
+        name = getattr(exc, "signal", "SIGINT")
+        what = "interrupted by the user (SIGINT)" if name == "SIGINT" else str(exc)
+        print(f"polypore: {what}" + (f"; wrote {where}" if where else ""), file=sys.stderr)
+        return 128 + signal.Signals[name].value
     except BrokenPipeError:
         # output piped into a program that stopped reading (e.g. `| head`): not an error of the run
         import os

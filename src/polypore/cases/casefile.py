@@ -10,6 +10,7 @@ reported instead of silently ignored.
 from __future__ import annotations
 
 import copy
+import math
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -22,6 +23,13 @@ from ..core.errors import InputError
 
 DATA = "data"
 _MISSING = object()
+
+
+def _finite(v) -> bool:
+    try:
+        return math.isfinite(v)
+    except OverflowError:  # an integer beyond the float range
+        return False
 
 
 def builtin_names() -> list[str]:
@@ -171,6 +179,10 @@ class Section:
             return v
         if isinstance(v, bool) or not isinstance(v, (int, float)):
             raise InputError(self.field(key), f"expected a number, got {v!r}")
+        if key in self.data and not _finite(v):
+            # TOML spells inf and nan as numbers; no value read as a number may be either
+            # (a default from the code may be inf on purpose)
+            raise InputError(self.field(key), f"must be a finite number, got {v!r}")
         if integer and int(v) != v:
             raise InputError(self.field(key), f"expected an integer, got {v!r}")
         if positive and not v > 0:

@@ -1,8 +1,8 @@
 """Result files of a run (interface.md): summary.json, fractures.csv, run directories.
 
-A run writes into a hidden staging directory inside DIR and moves the files into DIR only
+A run writes into a hidden staging directory next to DIR and moves the files into DIR only
 when it has succeeded, summary.json last: a failed run leaves no file that looks complete
-(only ``failed.json`` with the reason).
+(only ``failed.json`` with the reason); see :func:`polypore.io.atomic.run_directory`.
 """
 
 from __future__ import annotations
@@ -10,16 +10,13 @@ from __future__ import annotations
 import csv
 import io
 import json
-import os
-import shutil
-import tempfile
 from contextlib import contextmanager
 from pathlib import Path
 from typing import Iterator
 
 import numpy as np
 
-from .atomic import atomic_write_text
+from .atomic import atomic_write_text, is_staging, run_directory
 
 CSV_COLUMNS = ("step", "time", "fracture", "face", "x", "y", "z", "s", "area", "jump_n", "jump_t", "jump_x", "jump_y",
                "jump_z", "lambda_n", "lambda_t", "state", "aperture", "p_f")
@@ -79,24 +76,14 @@ def write_fractures_csv(path, blocks: list[dict]) -> None:
 
 @contextmanager
 def staged_run_directory(out: Path) -> Iterator[Path]:
-    """Yield a staging directory; on success move its files into ``out`` (summary.json last)."""
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=".partial-", dir=out))
-    try:
+    """Yield a folder to write a run's files into (see :func:`polypore.io.atomic.run_directory`).
+
+    Inside the command line's run directory ``out`` already is the staging folder and is
+    yielded as is: the command line moves it into place, after everything it does. Called
+    directly, this opens a run directory of its own on ``out``, replacing a previous result.
+    """
+    if is_staging(out):
+        yield Path(out)
+        return
+    with run_directory(out, force=True) as stage:
         yield stage
-    except BaseException as exc:
-        shutil.rmtree(stage, ignore_errors=True)
-        for name in ("summary.json",):
-            (out / name).unlink(missing_ok=True)
-        try:
-            atomic_write_text(out / "failed.json", json.dumps({"error": str(exc), "type": type(exc).__name__}, indent=2))
-        except OSError:
-            pass
-        raise
-    (out / "failed.json").unlink(missing_ok=True)
-    (out / "summary.json").unlink(missing_ok=True)
-    names = sorted(p.name for p in stage.iterdir())
-    for name in [n for n in names if n != "summary.json"] + [n for n in names if n == "summary.json"]:
-        os.replace(stage / name, out / name)
-    shutil.rmtree(stage, ignore_errors=True)
