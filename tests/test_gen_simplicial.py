@@ -236,7 +236,7 @@ def test_tip_refinement_2d_and_its_input_check():
     assert tip_face_length(tipped) < 0.6 * tip_face_length(plain)
     assert tipped.network.n_faces > plain.network.n_faces
     with pytest.raises(InputError, match="mesh.tip_size"):
-        simplicial_mesh([0, 0, 0], [1, 1, 1], [], 0.5, tip_size=0.01)
+        simplicial_mesh([0, 0, 0], [1, 1, 1], [], 0.5, tip_size=-0.01)
 
 
 def _reflect(X, a, b):

@@ -10,8 +10,8 @@ Schema (all lengths in m)::
     cells = [8, 8, 8]          # cartesian only: cells per direction
     fracture_size = 0.1        # simplicial/agglomerated: size on fractures (default: size)
     grading = 0.4              # simplicial/agglomerated: size growth per unit distance from the fractures
-    tip_size = 0.001           # simplicial, 2D: size at fracture tips (default: no tip refinement)
-    mirror = "none"            # simplicial, 2D: "tips" | "fractures": mesh symmetric about the fracture
+    tip_size = 0.001           # simplicial: size at crack tips (2D) / tip lines (3D) (default: none)
+    mirror = "none"            # simplicial: "tips" (2D) | "fractures" (2D, 3D): mesh symmetric about the fracture
                                #   line around each tip / along each straight fracture (λ_n free of
                                #   crack-tip error with two-sided bubbles)
     rounds = 2                 # agglomerated: rounds of pairwise merging

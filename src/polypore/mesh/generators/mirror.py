@@ -1,4 +1,4 @@
-"""2D meshes mirror-symmetric about fractures near their tips or along them (``mesh.mirror``).
+"""Meshes mirror-symmetric about fractures near their tips or along them (``mesh.mirror``).
 
 Why: next to a crack tip the shear (mode II) part of the displacement is singular. On a
 mesh that is not symmetric about the crack line, its discretisation error leaks into the
@@ -20,6 +20,9 @@ Modes:
 
 Each region is split by the fracture line; gmsh meshes its n^+ half and copies it to the
 n^- half by reflection (periodic meshing with a reflection map).
+
+In 3D, ``"fractures"`` mirrors a prism around every planar fracture (:mod:`.mirror3d`);
+``"tips"`` is 2D only.
 """
 
 from __future__ import annotations
@@ -31,6 +34,7 @@ import numpy as np
 
 from ...core.errors import InputError
 from ..fractures import segment_distances
+from .mirror3d import MirrorPrism, add_prism_volumes, prisms, reflect_halves, set_mirror_3d
 
 log = logging.getLogger("polypore")
 
@@ -77,31 +81,36 @@ def _frame(a, b):
 
 
 def mirror_regions(mode: str, fractures, lower, upper, interfaces=(), fracture_size: float | None = None
-                   ) -> list[MirrorRegion]:
+                   ) -> list[MirrorRegion] | list[MirrorPrism]:
     """The regions to mesh mirror-symmetrically for ``mode`` (see the module docstring).
 
     Parameters
     ----------
     mode : {"none", "tips", "fractures"}
-    fractures, interfaces : sequences of FractureSpec (2D polylines)
-    lower, upper : (2,) float, m
+    fractures, interfaces : sequences of FractureSpec (2D polylines / 3D planar polygons)
+    lower, upper : (d,) float, m
         The box domain.
     fracture_size : float, m, optional
-        Mesh size on the fractures: a tip patch under two cells across is logged.
+        Mesh size on the fractures: a 2D tip patch under two cells across is logged; in 3D
+        the smallest prism margin and boundary clearance accepted.
 
     Raises
     ------
     InputError
-        ``mesh.mirror``: unknown mode, a 3D box, no fracture; for "fractures" also a kinked
-        fracture, a band leaving the box or meeting another fracture or an interface.
+        ``mesh.mirror``: unknown mode, "tips" on a 3D box, no fracture; for "fractures" also
+        a kinked 2D fracture, a region leaving the box, overlapping another region or meeting
+        another fracture or an interface.
     """
     if mode not in MODES:
         raise InputError("mesh.mirror", f"unknown value {mode!r}; allowed: {', '.join(MODES)}")
     if mode == "none":
         return []
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
-    if lower.size != 2:
-        raise InputError("mesh.mirror", "mirror-symmetric meshing is available for 2D meshes only")
+    if lower.size == 3:
+        if mode == "tips":
+            raise InputError("mesh.mirror", "\"tips\" is available for 2D meshes only; in 3D use \"fractures\" "
+                             "(a mirrored prism around each planar fracture)")
+        return prisms(fractures, lower, upper, interfaces, fracture_size)
     if not fractures:
         raise InputError("mesh.mirror", "needs at least one fracture to mirror the mesh about")
     # (owner, segment number within it, name, a, b) for every fracture and interface segment
@@ -188,7 +197,10 @@ def _convex_overlap(P: np.ndarray, Q: np.ndarray) -> bool:
 
 
 def add_region_surfaces(occ, regions) -> list[tuple[int, int]]:
-    """OCC plane surfaces of the region halves, in the order [upper_0, lower_0, upper_1, ...]."""
+    """OCC entities of the region halves, in the order [upper_0, lower_0, upper_1, ...]:
+    plane surfaces in 2D, volumes in 3D (:func:`.mirror3d.add_prism_volumes`)."""
+    if regions and isinstance(regions[0], MirrorPrism):
+        return add_prism_volumes(occ, regions)
     ents = []
     for r in regions:
         for quad in (r.upper, r.lower):
@@ -198,12 +210,21 @@ def add_region_surfaces(occ, regions) -> list[tuple[int, int]]:
     return ents
 
 
-def set_mirror(gmsh, regions, children) -> None:
-    """Make each n^- half's mesh the reflection of its n^+ half's.
+def set_mirror(gmsh, regions, children) -> list[tuple[int, int]]:
+    """Make each n^- half's mesh the reflection of its n^+ half's (before meshing).
 
-    ``children`` holds, per half surface (same order as :func:`add_region_surfaces`), its
-    pieces after the fragment; each half must have stayed a single surface.
+    ``children`` holds, per half (same order as :func:`add_region_surfaces`), its pieces
+    after the fragment; each half must have stayed a single surface (volume in 3D).
+
+    Returns
+    -------
+    list of (int, int)
+        3D: the (n^+, n^-) volume tags per region, for :func:`mirror_volumes` after meshing
+        (only the bounding surfaces can be periodic in gmsh). 2D: empty, the periodic
+        surfaces are the whole mirrored mesh.
     """
+    if regions and isinstance(regions[0], MirrorPrism):
+        return set_mirror_3d(gmsh, regions, children)
     for k, r in enumerate(regions):
         up = [tag for d, tag in children[2 * k] if d == 2]
         lo = [tag for d, tag in children[2 * k + 1] if d == 2]
@@ -211,3 +232,12 @@ def set_mirror(gmsh, regions, children) -> None:
             raise InputError("mesh.mirror", f"the mirrored region around the {r.label} is cut by another "
                              "fracture or interface; move them apart")
         gmsh.model.mesh.setPeriodic(2, lo, up, r.affine.tolist())
+    return []
+
+
+def mirror_volumes(gmsh, regions, pairs, tags, X, cells, etags):
+    """3D, after meshing: the n^- halves' tetrahedra replaced by the reflections of the n^+
+    halves' (:func:`.mirror3d.reflect_halves`); returns (X, cells) unchanged without pairs."""
+    if not pairs:
+        return X, cells
+    return reflect_halves(gmsh, regions, pairs, tags, X, cells, etags)

@@ -20,12 +20,14 @@ from ..build import mesh_from_cells
 from ..fractures import validate_spec
 from ..mesh import Mesh
 from ..msh import gmsh_last_error, gmsh_session
-from .mirror import add_region_surfaces, mirror_regions, set_mirror
+from .mirror import add_region_surfaces, mirror_regions, mirror_volumes, set_mirror
 
 log = logging.getLogger("polypore")
 
 # size growth per unit distance away from the fractures (h(d) = fracture_size + GRADING * d)
 GRADING = 0.4
+# radius of the √r-graded zone around crack tips, in units of fracture_size
+TIP_RADIUS = 4.0
 
 
 def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_size: float | None = None,
@@ -46,11 +48,13 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
         Target cell size on the fractures (default ``size``); the size grows
         linearly (slope ``grading``, default ``GRADING``) to ``size`` away from them.
     tip_size : float, m, optional
-        2D only: target size at the fracture ends inside the box (crack tips), graded the same way.
+        Target size at the crack tips, graded the same way: the fracture ends inside the box
+        in 2D, the fracture edges inside the box (tip lines) in 3D.
     mirror : {"none", "tips", "fractures"}
-        2D only: mesh a patch around every fracture tip ("tips") or a band around every
-        straight fracture ("fractures") symmetrically about the fracture line (see
-        :mod:`.mirror`: no crack-tip error in the normal multipliers).
+        Mesh a patch around every fracture tip ("tips", 2D only) or a band around every
+        straight fracture ("fractures"; in 3D a prism around every planar fracture)
+        symmetrically about the fracture line / plane (see :mod:`.mirror` and
+        :mod:`.mirror3d`: no crack-tip error in the normal multipliers).
     interfaces : sequence of FractureSpec
         Further lines/polygons the mesh must conform to (region boundaries), meshed at ``size``.
     seed : int
@@ -80,8 +84,6 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
     if not (np.isfinite(fsize) and fsize > 0):
         raise InputError("mesh.fracture_size", f"must be a positive number, got {fracture_size}")
     if tip_size is not None:
-        if dim != 2:
-            raise InputError("mesh.tip_size", "tip refinement is available for 2D meshes only")
         if not (isinstance(tip_size, (int, float)) and tip_size > 0):
             raise InputError("mesh.tip_size", f"must be a positive number (m), got {tip_size}")
     if not (isinstance(grading, (int, float)) and grading > 0):
@@ -104,7 +106,7 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
         "Mesh.RandomSeed": int(seed),
         # the size comes from the background field only
         "Mesh.MeshSizeExtendFromBoundary": 0, "Mesh.MeshSizeFromPoints": 0, "Mesh.MeshSizeFromCurvature": 0,
-        "Mesh.MeshSizeMax": float(size), "Mesh.MeshSizeMin": 0.5 * fsize,
+        "Mesh.MeshSizeMax": float(size), "Mesh.MeshSizeMin": 0.5 * min(fsize, tip_size or fsize),
         # OCC booleans need a tolerance relative to the model, not the absolute default
         "Geometry.Tolerance": 1e-9 * span, "Geometry.ToleranceBoolean": 1e-9 * span,
         "Geometry.OCCBooleanPreserveNumbering": 1,
@@ -159,6 +161,32 @@ def _tip_points(gmsh, fractures, lower, upper) -> list[int]:
     return tags
 
 
+def _tip_curves(gmsh, frac_ents, fractures, lower, upper) -> list[int]:
+    """Tags of the 3D tip lines: edges of the fracture surfaces that lie neither on the box
+    boundary nor on another fracture (intersection and T-junction lines). Fracture edges are
+    straight, so each is classified by its midpoint."""
+    from ..fractures import _inside_polygon
+
+    tol = 1e-7 * float(np.max(upper - lower))
+    geos = [validate_spec(s, 3) for s in fractures]
+    curves = sorted({abs(c) for tag in frac_ents
+                     for _, c in gmsh.model.getBoundary([(2, tag)], combined=False, oriented=False)})
+    tips = []
+    for c in curves:
+        t0, t1 = gmsh.model.getParametrizationBounds(1, c)
+        mid = np.asarray(gmsh.model.getValue(1, c, [0.5 * (t0[0] + t1[0])]))
+        if np.any(np.isclose(mid, lower, rtol=0, atol=tol) | np.isclose(mid, upper, rtol=0, atol=tol)):
+            continue
+        owners = 0
+        for g in geos:
+            X = mid - g["centre"]
+            if abs(X @ g["normal"]) <= tol:
+                owners += int(_inside_polygon(np.array([[X @ g["e1"], X @ g["e2"]]]), g["poly2d"], tol)[0])
+        if owners == 1:
+            tips.append(c)
+    return tips
+
+
 def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, grading=GRADING, tip_size=None,
               regions=()):
     occ = gmsh.model.occ
@@ -181,8 +209,7 @@ def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, gradi
             if i < len(fractures):
                 frac_ents.update(tag for d, tag in children if d == dim - 1)
     occ.synchronize()
-    if mirrored:
-        set_mirror(gmsh, regions, out_map[1 + len(tools):])
+    pairs = set_mirror(gmsh, regions, out_map[1 + len(tools):]) if mirrored else []
 
     field = gmsh.model.mesh.field
     if frac_ents and fsize < size:
@@ -199,17 +226,23 @@ def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, gradi
         field.setNumber(thr, "DistMin", 0.5 * fsize)
         field.setNumber(thr, "DistMax", 0.5 * fsize + (size - fsize) / grading)
         background = thr
-        tips = _tip_points(gmsh, fractures, lower, upper) if tip_size is not None and dim == 2 else []
+        tips = [] if tip_size is None else (_tip_points(gmsh, fractures, lower, upper) if dim == 2
+                                            else _tip_curves(gmsh, frac_ents, fractures, lower, upper))
         if tips and tip_size < fsize:
             # crack tips carry the stress singularity: grade down to tip_size there
             dtip = field.add("Distance")
-            field.setNumbers(dtip, "PointsList", tips)
-            ttip = field.add("Threshold")
-            field.setNumber(ttip, "InField", dtip)
-            field.setNumber(ttip, "SizeMin", tip_size)
-            field.setNumber(ttip, "SizeMax", size)
-            field.setNumber(ttip, "DistMin", 0.5 * tip_size)
-            field.setNumber(ttip, "DistMax", 0.5 * tip_size + (size - tip_size) / grading)
+            field.setNumbers(dtip, "PointsList" if dim == 2 else "CurvesList", tips)
+            if dim == 3:
+                field.setNumber(dtip, "Sampling", int(np.clip(np.ceil(2 * extent / tip_size), 20, 2000)))
+            # h(r) = fsize √(r/R), floored at tip_size: the grading that resolves the √r crack-tip
+            # field with P1-type spaces (cell count ∝ R²/fsize³ per unit tip length, whatever tip_size)
+            R = TIP_RADIUS * fsize
+            root = field.add("MathEval")
+            field.setString(root, "F", f"{fsize!r} * Sqrt(F{dtip} / {R!r})")
+            floor = field.add("MathEval")
+            field.setString(floor, "F", repr(float(tip_size)))
+            ttip = field.add("Max")
+            field.setNumbers(ttip, "FieldsList", [root, floor])
             background = field.add("Min")
             field.setNumbers(background, "FieldsList", [thr, ttip])
         field.setAsBackgroundMesh(background)
@@ -221,7 +254,7 @@ def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, gradi
 
     tags, coords, _ = gmsh.model.mesh.getNodes()
     etype = 2 if dim == 2 else 4  # 3-node triangle / 4-node tetrahedron
-    _, enodes = gmsh.model.mesh.getElementsByType(etype)
+    etags, enodes = gmsh.model.mesh.getElementsByType(etype)
     tags = np.asarray(tags, np.int64)
     X = np.asarray(coords, float).reshape(-1, 3)[:, :dim]
     conn = np.asarray(enodes, np.int64).reshape(-1, dim + 1)
@@ -229,5 +262,7 @@ def _generate(gmsh, dim, lower, upper, fractures, interfaces, size, fsize, gradi
     lookup = np.full(int(tags.max(initial=0)) + 1, -1, np.int64)
     lookup[tags] = np.arange(tags.size)
     idx = lookup[conn]
+    # 3D mirror: gmsh meshed the halves' surfaces symmetrically, the volumes are mirrored here
+    X, idx = mirror_volumes(gmsh, regions, pairs, tags, X, idx, np.asarray(etags, np.int64))
     used, inv = np.unique(idx, return_inverse=True)
     return X[used], inv.reshape(idx.shape).astype(INDEX)

@@ -1,0 +1,67 @@
+"""3D crack-front (tip-line) grading of simplicial meshes (``mesh.tip_size``): the fracture
+edges inside the box are refined down to tip_size with a √r law; edges on the box boundary
+and intersection lines are not tip lines."""
+
+import numpy as np
+import pytest
+
+from polypore.mesh import FracturedMesh, FractureSpec
+from polypore.mesh.generators.simplicial import simplicial_mesh
+
+pytest.importorskip("gmsh")
+
+
+def _face_sizes(fm):
+    """Centroids (n, 3) and diameters (n,) of the fracture faces."""
+    g = fm.mesh.geometry
+    f = fm.network.faces
+    return g.face_centroid[f], g.face_diameter[f]
+
+
+def _square(name, z, half=0.3, normal=(0.0, 0.0, 1.0)):
+    V = np.array([[-half, -half, z], [half, -half, z], [half, half, z], [-half, half, z]]) + 0.5 * np.array([1, 1, 0])
+    return FractureSpec(name, V, np.array(normal))
+
+
+def test_tip_lines_of_an_interior_fracture_are_refined():
+    spec = [_square("F", 0.5)]
+    plain = FracturedMesh.build(simplicial_mesh([0, 0, 0], [1, 1, 1], spec, 0.3, fracture_size=0.08), spec)
+    tipped = FracturedMesh.build(simplicial_mesh([0, 0, 0], [1, 1, 1], spec, 0.3, fracture_size=0.08,
+                                                 tip_size=0.01), spec)
+    c, h = _face_sizes(tipped)
+    edge_dist = 0.3 - np.abs(c[:, :2] - 0.5).max(axis=1)     # distance to the square's edges
+    near, far = edge_dist < 0.01, edge_dist > 0.2
+    assert h[near].max() < 0.035                             # fracture_size 0.08 → ≤ ~3 tip sizes at the front
+    assert np.median(h[far]) > 0.05                          # the middle keeps about fracture_size
+    c0, h0 = _face_sizes(plain)
+    d0 = 0.3 - np.abs(c0[:, :2] - 0.5).max(axis=1)
+    assert h[near].mean() < 0.5 * h0[d0 < 0.04].mean()
+    # the √r law: sizes grow away from the front (faces within 0.1 of it, binned by distance)
+    band = edge_dist < 0.1
+    slope = np.polyfit(np.log(edge_dist[band] + 1e-3), np.log(h[band]), 1)[0]
+    assert 0.2 < slope < 1.0
+
+
+def test_boundary_edges_and_intersections_are_not_tip_lines():
+    # a fracture across the whole box (edges on the boundary) crossed by a small one: the only
+    # tip lines are the three edges of the small fracture off the big one's plane
+    big = FractureSpec("big", np.array([[0, 0, 0.5], [1, 0, 0.5], [1, 1, 0.5], [0, 1, 0.5]], float),
+                       np.array([0.0, 0.0, 1.0]))
+    small = FractureSpec("small", np.array([[0.5, 0.3, 0.3], [0.5, 0.7, 0.3], [0.5, 0.7, 0.5], [0.5, 0.3, 0.5]], float),
+                         np.array([1.0, 0.0, 0.0]))
+    specs = [big, small]
+    fm = FracturedMesh.build(simplicial_mesh([0, 0, 0], [1, 1, 1], specs, 0.3, fracture_size=0.1, tip_size=0.01),
+                             specs)
+    c, h = _face_sizes(fm)
+    on_big = fm.network.fracture == 0
+    # the big fracture: fine only near the small one's line (y ∈ [0.3, 0.7], x = 0.5), not at the box edges
+    rim = on_big & ((c[:, 0] < 0.05) | (c[:, 0] > 0.95) | (c[:, 1] < 0.05) | (c[:, 1] > 0.95))
+    assert h[rim].min() > 0.05
+    # ... nor along the T-junction line x = 0.5, z = 0.5 (0.2 from the small fracture's tip lines)
+    mid = on_big & (np.linalg.norm(c - [0.5, 0.5, 0.5], axis=1) < 0.03)
+    assert mid.any() and h[mid].min() > 0.03
+    # the small fracture: fine at its lower edge z = 0.3 (a tip line), and not forced fine along
+    # its intersection z = 0.5 with the big fracture beyond the tips' influence
+    small_f = ~on_big
+    low = small_f & (c[:, 2] < 0.31) & (np.abs(c[:, 1] - 0.5) < 0.1)
+    assert h[low].max() < 0.035
