@@ -92,13 +92,17 @@ def test_terzaghi_consolidation():
         # undrained response: uniform p = b M σ/(K_d + b² M) and settlement σ H/(K_d + b² M)
         z = P.fm.mesh.geometry.cell_centroid[:, 1]
         rel = np.abs(P.cell_pressure(und) / p0 - 1)
-        assert rel.max() < 1e-3 and rel[z < TZ["H"] - 2.0 / ny].max() < 1e-6   # drained only in the top cell
+        # drained in the top cell; the pressure stabilisation (δ b² h²/(λ_L+2μ) Δ∂_t p) passes a
+        # geometric tail of that drop down, ≈ 1/6.3 per cell: 2.5 % of it two cells below
+        # (measured 4.2e-6 and 1.7e-5 for ny = 10, 20; round-off with the stabilisation off)
+        assert rel.max() < 1e-3 and rel[z < TZ["H"] - 2.0 / ny].max() < 0.03 * rel.max()
         top = np.isclose(P.fm.mesh.nodes[P.fm.sides.side_node][:, 1], TZ["H"])
         settle = TZ["load"] * TZ["H"] / (Kd + TZ["b"] ** 2 * TZ["M"])
         assert np.allclose(und.u[: P.fm.sides.n_sides][top, 1], -settle, rtol=1e-3)
         assert not check_energy(energies)
         assert max(abs(e.defect) / e.scale for e in energies) < 1e-12
-    # measured: ny=10 {0.05: 3.4e-2, 0.2: 6.9e-3, 0.5: 6.9e-3}; ny=20 {8.6e-3, 1.7e-3, 1.7e-3}
+    # measured: ny=10 {0.05: 3.4e-2, 0.2: 6.3e-3, 0.5: 7.2e-3}; ny=20 {9.0e-3, 1.5e-3, 1.8e-3}
+    # (pressure stabilisation on; off: {3.4e-2, 6.9e-3, 6.9e-3}, {8.6e-3, 1.7e-3, 1.7e-3})
     for f in (0.05, 0.2, 0.5):
         assert out[20][f] < 1e-2
         assert out[10][f] / out[20][f] > 3.5

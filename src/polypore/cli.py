@@ -125,12 +125,19 @@ def cmd_run(args) -> int:
     case = load_case(args.case, args.set or [])
     with _output(args, case.name) as (out, stage):
         summary = run_case(case, stage)
-    st = summary["steps"][-1]
-    line = f"case {case.name}: {summary['mesh']['cells']} cells, {summary['mesh']['unknowns']} unknowns; "
+    steps = summary["steps"]
+    st = steps[-1] if steps else {}
+    parts = [f"{summary['mesh']['cells']} cells, {summary['mesh']['unknowns']} unknowns"]
+    if len(steps) > 1:
+        parts.append(f"{len(steps)} time steps")
     if "newton_iterations" in st:
-        line += (f"{st['newton_iterations']} Newton iterations, residual {st['residual']:.2e}; "
-                 f"faces open {st['open']}, stick {st['stick']}, slip {st['slip']}; ")
-    print(line + f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB")
+        # the total is the cost of the run; the residual and contact states are the final ones
+        n = sum(s["newton_iterations"] for s in steps)
+        parts.append(f"{n} Newton iteration{'' if n == 1 else 's'}")
+        parts.append(f"{'at the end ' if len(steps) > 1 else ''}residual {st['residual']:.2e}, "
+                     f"faces open {st['open']}, stick {st['stick']}, slip {st['slip']}")
+    parts.append(f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB")
+    print(f"case {case.name}: " + "; ".join(parts))
     for name, v in summary.get("errors", {}).items():
         print(f"  {name} = {v:.4e}")
     print(f"wrote {out}/")

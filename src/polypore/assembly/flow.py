@@ -220,6 +220,44 @@ class FlowAssembler:
         vals, _ = self._values(cell_storage, exchange, fracture_conductivity, fracture_storage, True)
         return self._full_pattern.fill(vals)
 
+    def cell_pairs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Neighbouring matrix cells across the interior faces that are not fracture faces.
+
+        Returns
+        -------
+        faces : (n_pairs,) int64 mesh face ids σ
+        cells : (n_pairs, 2) int64, the two cells (K, L) of each
+        dist : (n_pairs, 2) d_Kσ and d_Lσ, m: the distance from each side's HFV cell point x_K
+            to σ's plane (positive, as HFV requires)
+        width : (n_pairs, 2) h_Kσ and h_Lσ, m: the width of each cell across σ, i.e. the largest
+            distance from σ's plane of a node of the cell (the height over σ of a simplex, the
+            side normal to σ of a box)
+        pos : (n_pairs, 2) int64 positions of (K, σ) and (L, σ) in ``mesh.cell_faces.values``
+        """
+        mesh, cf, cn = self.mesh, self.mesh.cell_faces, self.mesh.cell_nodes
+        g = mesh.geometry
+        dist = np.zeros(cf.nnz)                      # d_Kσ = (x̄_σ − x_K)·A_Kσ/|A_Kσ| per (cell, face)
+        for b in self.hfv.blocks:
+            dist[b.pos] = np.einsum("ksi,ksi->ks", b.X, b.A) / np.linalg.norm(b.A, axis=2)
+        fc = mesh.face_cells
+        faces = np.flatnonzero((fc[:, 1] >= 0) & (self.dofs.face >= 0))
+        side = (cf.rows_of_entries() != fc[cf.values, 0]).astype(np.int64)   # 0: K = face_cells[σ, 0], 1: L
+        pos = np.full((mesh.n_faces, 2), -1, np.int64)
+        pos[cf.values, side] = np.arange(cf.nnz)
+        pos = pos[faces].ravel()
+        # width: max over the nodes s of K of (x̄_σ − x_s)·n_Kσ, one (entry, node) row per node of K
+        cell = cf.rows_of_entries()[pos]
+        cnt = cn.counts[cell]
+        start = np.zeros(pos.size, np.int64)
+        np.cumsum(cnt[:-1], out=start[1:])
+        node = cn.values[np.repeat(cn.offsets[cell].astype(np.int64) - start, cnt) + np.arange(cnt.sum())]
+        n_out = (mesh.cell_face_sign[pos].astype(float)[:, None] * g.face_normal[cf.values[pos]])
+        h = np.einsum("ki,ki->k", g.face_centroid[cf.values[pos]][np.repeat(np.arange(pos.size), cnt)]
+                      - mesh.nodes[node], np.repeat(n_out, cnt, axis=0))
+        width = np.maximum.reduceat(h, start) if pos.size else np.zeros(0)
+        return (faces.astype(np.int64), fc[faces].astype(np.int64), dist[pos].reshape(-1, 2), width.reshape(-1, 2),
+                pos.reshape(-1, 2))
+
     def rhs(self, system: FlowSystem, cell_rhs, fracture_rhs, face_flux=None) -> np.ndarray:
         """Condensed right-hand side (n,) in m³/s.
 

@@ -10,7 +10,9 @@ reported instead of silently ignored.
 from __future__ import annotations
 
 import copy
+import difflib
 import math
+import re
 import tomllib
 from dataclasses import dataclass
 from importlib import resources
@@ -23,6 +25,40 @@ from ..core.errors import InputError
 
 DATA = "data"
 _MISSING = object()
+
+# Every top-level key or table a case may have (read by casefile, meshing, mechanics_setup,
+# flow_setup, schedule, insitu, poro_run, run); anything else is a typo, reported at load time
+# because no table reader would see it. base_dir is added by load_case for case files.
+TOP_LEVEL = ("name", "description", "model", "base_dir", "parameters", "mesh", "fractures", "regions",
+             "boundaries", "material", "materials", "mechanics", "contact", "exact", "flow", "time", "solver",
+             "initial_state", "monitor")
+# a case name becomes a folder name (results/<name>): no path separators, no "..", no spaces
+_NAME = re.compile(r"[\w.-]+")
+
+
+def unknown_key(key: str, allowed: Iterable[str], what: str = "unknown key") -> str:
+    """Message for an unknown key: a did-you-mean suggestion and the accepted keys."""
+    allowed = sorted(allowed)
+    close = difflib.get_close_matches(str(key), allowed, n=1)
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    return f"{what}{hint}; accepted: {', '.join(allowed) or 'nothing'}"
+
+
+def check_top_level(data: dict, where: str = "") -> None:
+    """InputError for a top-level key or table no part of polypore reads (``[solvr]``)."""
+    for key in data:
+        if key not in TOP_LEVEL:
+            what = "table" if isinstance(data[key], (dict, list)) else "key"
+            raise InputError(key, unknown_key(key, TOP_LEVEL, f"unknown top-level {what}{where}"))
+
+
+def check_name(name, from_file: bool) -> None:
+    """InputError unless ``name`` can be a folder name under results/."""
+    if isinstance(name, str) and _NAME.fullmatch(name) and name != "." and ".." not in name:
+        return
+    origin = " (taken from the file name; set name = \"...\" in the case file)" if from_file else ""
+    raise InputError("name", f"the case name names its results folder (results/<name>), so it may hold only "
+                     f"letters, digits, '-', '_' and '.', with no path separator and no '..'; got {name!r}{origin}")
 
 
 def _finite(v) -> bool:
@@ -68,12 +104,15 @@ def load_case(name_or_path: str, overrides: Iterable[str] = ()) -> CaseFile:
         text = (resources.files(__package__) / DATA / f"{name_or_path}.toml").read_text()
         data = _read_toml(text, f"built-in case {name_or_path!r}")
         source = f"builtin:{name_or_path}"
+        stem_name = None
     elif path.suffix == ".toml" or path.exists():
         if not path.is_file():
             raise InputError("case", f"case file {str(path)!r} does not exist; give a built-in case name "
                              f"({', '.join(builtin_names())}) or the path of a TOML case file")
         data = _read_toml(path.read_text(), f"case file {str(path)!r}")
         source = str(path.resolve())
+        check_top_level(data, f" in {str(path)!r}")
+        stem_name = None if "name" in data else path.stem
         data.setdefault("name", path.stem)
         data.setdefault("base_dir", str(path.resolve().parent))
     else:
@@ -81,10 +120,13 @@ def load_case(name_or_path: str, overrides: Iterable[str] = ()) -> CaseFile:
                          "or give the path of a .toml case file")
     data = copy.deepcopy(data)
     for item in overrides:
+        top = item.partition("=")[0].strip().split(".")[0]
+        if "=" in item and top and top not in TOP_LEVEL:
+            raise InputError(f"--set {item}", unknown_key(top, TOP_LEVEL, f"unknown top-level key or table {top!r}"))
         apply_override(data, item)
+    check_top_level(data)
     name = data.get("name", path.stem)
-    if not isinstance(name, str) or not name:
-        raise InputError("name", f"the case name must be a non-empty string, got {name!r}")
+    check_name(name, from_file=stem_name is not None and name == stem_name)
     return CaseFile(name, source, data)
 
 
@@ -248,7 +290,7 @@ class Section:
         extra = set(self.data) - self._read - set(ignore)
         if extra:
             k = sorted(extra)[0]
-            raise InputError(self.field(k), f"unknown key; this table accepts: {', '.join(sorted(self._read)) or 'nothing'}")
+            raise InputError(self.field(k), unknown_key(k, self._read | set(ignore), "unknown key"))
 
     def check(self, key: str, ok: Callable[[Any], bool], message: str):
         v = self.raw(key)

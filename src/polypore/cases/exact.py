@@ -169,7 +169,7 @@ def contact_manufactured(dim: int, mu: float = 1.0, lam: float = 1.0, F: float =
 SOLUTIONS = {"frictionless-3d": frictionless_3d,
              "contact-2d": lambda mu, lam: contact_manufactured(2, mu, lam),
              "contact-3d": lambda mu, lam: contact_manufactured(3, mu, lam)}
-PROFILES = ("single-crack",)
+PROFILES = ("single-crack", "penny-shaped-crack")   # analytic profiles, wired in mechanics_setup
 
 
 def get_solution(name: str, mu: float, lam: float):
@@ -177,8 +177,10 @@ def get_solution(name: str, mu: float, lam: float):
 
     if name in SOLUTIONS:
         return SOLUTIONS[name](float(mu), float(lam))
+    from .reference import REFERENCES
+
     raise InputError("exact.solution", f"unknown exact solution {name!r}; allowed: "
-                     f"{', '.join(list(SOLUTIONS) + list(PROFILES))}")
+                     f"{', '.join(list(SOLUTIONS) + list(PROFILES) + list(REFERENCES))}")
 
 
 # ---------------------------------------------------------------------------- error measures

@@ -22,6 +22,8 @@ Schema (SI units; every value may be a number or an expression, see below)::
     initial_pressure = 1e5           # p⁰ (Pa) of a transient run: expression of x, y, z
     steady = true                    # default: true unless the case has a [time] table
     alpha = 1.414                    # HFV stabilisation α (default √d); fracture_alpha (√(d−1))
+    pressure_stabilisation = 0.25    # δ ≥ 0 of the poromechanics pressure-jump stabilisation
+                                     # (Poromechanics.stabilisation_matrix); 0 switches it off
 
     [[flow.regions]]                 # per-region permeability (overrides `permeability` there)
     name = "reservoir"
@@ -256,6 +258,7 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
     M = _storage(sec, mesh)
     cf = sec.number("fracture_compressibility", 0.0, nonneg=True)
     psi = sec.number("dilatancy_angle", 0.0, nonneg=True)
+    delta = sec.number("pressure_stabilisation", None, nonneg=True)     # None: the model's default
     if not psi < 90:
         raise InputError(sec.field("dilatancy_angle"), f"must be an angle in [0, 90) degrees, got {psi!r}")
     fvars = fracture_variables(fm)
@@ -428,7 +431,8 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
             fracture_source = exact.h_f(xf, on1)
     return FlowSetup(fm, data, boundary, fracture_boundary, cell_source, fracture_source,
                      LinearSolver(backend, symmetric=True, rtol=rtol), schedule, initial, alpha, falpha, exact, on1,
-                     {"fracture_variables": fvars, "tan_psi": float(np.tan(np.radians(psi)))})
+                     {"fracture_variables": fvars, "tan_psi": float(np.tan(np.radians(psi))),
+                      "pressure_stabilisation": delta})
 
 
 def _exact(name, fm, data: FlowData, K, ap, cols, fvars):

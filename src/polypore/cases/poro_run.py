@@ -23,12 +23,12 @@ from ..core.errors import InputError, RunError
 from ..io.atomic import atomic_write_text
 from ..io.plots import monitor_plots, poro_plots
 from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
-from ..io.vtu import write_bulk_vtu, write_fracture_vtu, write_pvd
+from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu, write_pvd
 from ..models.contact import SLIP, STATE_NAMES
 from ..models.energy import check_energy
 from ..models.fracture_geometry import arc_length
-from ..models.poromechanics import Poromechanics
-from .casefile import CaseFile
+from ..models.poromechanics import STABILISATION, Poromechanics
+from .casefile import CaseFile, unknown_key
 from .flow_setup import flow_setup
 from .insitu import reference_state
 from .mechanics_setup import mechanics_setup
@@ -57,7 +57,7 @@ def poro_setup(case: CaseFile, fm):
     unknown = set(case.data.get("solver", {})) - set(MECH_SOLVER_KEYS) - set(FLOW_SOLVER_KEYS)
     if unknown:
         k = sorted(unknown)[0]
-        raise InputError(f"solver.{k}", f"unknown key; this table accepts: {', '.join(sorted(set(MECH_SOLVER_KEYS) | set(FLOW_SOLVER_KEYS)))}")
+        raise InputError(f"solver.{k}", unknown_key(k, set(MECH_SOLVER_KEYS) | set(FLOW_SOLVER_KEYS)))
     if "flow" not in case.data:
         raise InputError("flow", "a poromechanics case needs flow data: a [flow] table (permeability, viscosity, "
                          "biot_modulus, aperture, normal_permeability, boundary conditions)")
@@ -78,7 +78,9 @@ def poro_setup(case: CaseFile, fm):
                           fracture_alpha=fs.fracture_alpha, solver=ms.solver,
                           newton=dataclasses.replace(ms.newton, label="poromechanics Newton", stall_iterations=12),
                           initial_traction=None if ref is None else ref.traction(fm),
-                          dilatancy=fs.info.get("tan_psi", 0.0))
+                          dilatancy=fs.info.get("tan_psi", 0.0),
+                          pressure_stabilisation=STABILISATION if fs.info.get("pressure_stabilisation") is None
+                          else fs.info["pressure_stabilisation"])
     model.reference = ref
     return model, fs, ms
 
@@ -152,10 +154,12 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             fq = model.fracture_quantities(st)
             p = model.cell_pressure(st)
             eff, tot = model.stresses(st)
+            (eff, comps), (tot, _) = symmetric_tensor(eff), symmetric_tensor(tot)
             write_bulk_vtu(stage / f"bulk_{k_out:04d}.vtu", mesh, cell_data={
                 "pressure": p + p_ref, "overpressure": p - p0, "displacement": model.mech.cell_displacement(
-                    _mstate(st)), "effective_stress": eff.reshape(len(eff), -1),
-                "total_stress": tot.reshape(len(tot), -1)})
+                    _mstate(st)), "effective_stress": eff, "total_stress": tot},
+                point_data={"displacement": model.mech.node_displacement(_mstate(st))},  # for Warp By Vector
+                component_names={"effective_stress": comps, "total_stress": comps})
             write_fracture_vtu(stage / f"fractures_{k_out:04d}.vtu", fm, cell_data={
                 "jump": fq["jump"], "jump_n": fq["jump_n"], "jump_t": fq["jump_t"], "lambda": st.lam,
                 "lambda_n": fq["lambda_n"], "lambda_t": fq["lambda_t"], "state": fq["state"].astype(np.int32),

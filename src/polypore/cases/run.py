@@ -17,7 +17,7 @@ import numpy as np
 from .. import __version__
 from ..io.plots import fracture_profiles, state_map
 from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
-from ..io.vtu import write_bulk_vtu, write_fracture_vtu, write_pvd
+from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu, write_pvd
 from ..io.atomic import atomic_write_text
 from ..models.contact import STATE_NAMES
 from ..models.fracture_geometry import arc_length
@@ -25,6 +25,8 @@ from ..models.mechanics import ContactMechanics
 from .casefile import CaseFile
 from .exact import PiecewiseSolution, SingleCrack, piecewise_errors
 from .mechanics_setup import mechanics_setup
+from .penny_exact import PennyCrack
+from .reference import ReferenceSlip
 from .meshing import build_fractured_mesh
 
 log = logging.getLogger("polypore")
@@ -50,6 +52,10 @@ def solve_static(case: CaseFile):
         errors = piecewise_errors(problem, st, setup.exact)
     elif isinstance(setup.exact, SingleCrack):
         errors = setup.exact.errors(problem, st, arc_length(fm))
+    elif isinstance(setup.exact, PennyCrack):
+        errors = setup.exact.errors(problem, st)
+    elif isinstance(setup.exact, ReferenceSlip):
+        errors = setup.exact.errors(problem, st)
     timings = {"mesh": t1 - t0, "setup": t2 - t1, "solve": t3 - t2, **{f"solve_{k}": v for k, v in st.seconds.items()}}
     return problem, st, setup, errors, timings
 
@@ -116,9 +122,11 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
     with staged_run_directory(out) as stage:
         atomic_write_text(stage / "case.toml", case.to_toml())
         stress = problem.stress(st)
+        sv, comps = symmetric_tensor(stress)
         write_bulk_vtu(stage / "bulk_0000.vtu", mesh, cell_data={
-            "displacement": problem.cell_displacement(st), "stress": stress.reshape(len(stress), -1),
-            "von_mises": _von_mises(stress)}, point_data={"displacement": problem.node_displacement(st)})
+            "displacement": problem.cell_displacement(st), "stress": sv,
+            "von_mises": _von_mises(stress)}, point_data={"displacement": problem.node_displacement(st)},
+            component_names={"stress": comps})
         qn = np.einsum("fi,fi->f", q, problem.normal)
         ln = np.einsum("fi,fi->f", st.lam, problem.normal)
         write_fracture_vtu(stage / "fractures_0000.vtu", fm, cell_data={

@@ -156,7 +156,8 @@ def _cell_polygons(mesh):
 
 def poro_plots(stage, case_name, mesh, net, s, snapshots, series, t_end):
     """The C4 figures: overpressure maps, contact states along the fractures at T/4 and T,
-    mean aperture and mean fracture pressure per fracture against time (2D)."""
+    mean aperture and mean fracture pressure per fracture against time (2D; without
+    fractures only the overpressure maps)."""
     plt = _plt()
     from matplotlib.collections import PolyCollection
 
@@ -187,6 +188,8 @@ def poro_plots(stage, case_name, mesh, net, s, snapshots, series, t_end):
         ax.axis("off")
     fig.suptitle(f"{case_name}: matrix overpressure", fontsize=10)
     save(fig, stage / "overpressure.png")
+    if not net.n_faces:
+        return
     # contact states along the fractures at T/4 and T
     times = np.array([sn["time"] for sn in snapshots])
     picks = sorted({int(np.argmin(np.abs(times - t_end / 4))), len(snapshots) - 1})
@@ -220,9 +223,12 @@ def monitor_plots(stage, case_name, net, s, monitor: dict, snapshots, onset, uni
         max p_f, Pa}, "fault_slip": {fracture: (n,) max slip since the start, m}}
     snapshots : output snapshots with "time", "slip" (n_ff,) and "aperture" (n_ff,)
     onset : time of the first slipping face (s) or None
-    Writes monitor.png (pressures and max slip against time) and slip_profiles.png (slip and
-    aperture along each fracture at every output time, against the arc length s).
+    Writes monitor.png (pressures and max slip against time; not without monitor points and
+    fractures) and slip_profiles.png (slip and aperture along each fracture at every output
+    time, against the arc length s; not without fractures).
     """
+    if not monitor["points"] and not net.n_faces:
+        return                     # nothing to monitor
     plt = _plt()
     t = np.asarray(monitor["time"]) / unit_time
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
@@ -237,12 +243,15 @@ def monitor_plots(stage, case_name, net, s, monitor: dict, snapshots, onset, uni
             a.axvline(onset / unit_time, color="0.4", lw=0.8, ls=":", label="slip onset")
         a.set_xlabel(time_label)
         a.grid(alpha=0.3)
-        a.legend(fontsize=8)
+        if a.get_legend_handles_labels()[0]:     # the slip panel is empty without fractures
+            a.legend(fontsize=8)
     a1.set_ylabel("overpressure (MPa)")
     a2.set_ylabel("slip |[[u − u⁰]]_τ| (mm)")
     fig.suptitle(f"{case_name}: pressures and slip against time", fontsize=10)
     save(fig, stage / "monitor.png")
     nfr = len(net.names)
+    if not net.n_faces:
+        return
     fig, axes = plt.subplots(2, nfr, figsize=(4.5 * nfr + 1, 6), squeeze=False, sharex="col")
     cmap = plt.get_cmap("viridis")
     for j, name in enumerate(net.names):

@@ -15,6 +15,13 @@ Cells
   as ``connectivity``.
 * Fracture faces: ``VTK_LINE`` (3) in 2D, ``VTK_POLYGON`` in 3D, oriented so that
   their right-hand normal is n⁺.
+
+Arrays
+------
+2-vectors are padded to 3 components (z = 0). Stress tensors are written by
+:func:`symmetric_tensor` as their independent components with VTK ``ComponentName``
+attributes (ParaView shows them by name): ``xx, yy, zz, xy, yz, xz`` in 3D — VTK's order
+of a symmetric tensor, which ParaView treats as one — and ``xx, yy, xy`` in 2D.
 """
 
 from __future__ import annotations
@@ -30,10 +37,11 @@ import numpy as np
 from ..core.ragged import Ragged
 from .atomic import atomic_path, atomic_write_text
 
-__all__ = ["VTK_LINE", "VTK_POLYGON", "VTK_POLYHEDRON", "bulk_cells", "fracture_cells",
+__all__ = ["VTK_LINE", "VTK_POLYGON", "VTK_POLYHEDRON", "bulk_cells", "fracture_cells", "symmetric_tensor",
            "write_bulk_vtu", "write_fracture_vtu", "write_pvd", "write_unstructured_vtu"]
 
 VTK_LINE, VTK_POLYGON, VTK_POLYHEDRON = 3, 7, 42
+TENSOR_COMPONENTS = {2: ("xx", "yy", "xy"), 3: ("xx", "yy", "zz", "xy", "yz", "xz")}
 
 _VTK_TYPE = {
     ("f", 4): "Float32", ("f", 8): "Float64",
@@ -68,6 +76,22 @@ def _vtk_array(a, n: int, what: str) -> np.ndarray:
     return np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<"))
 
 
+def symmetric_tensor(S) -> tuple[np.ndarray, tuple]:
+    """Independent components of (n, d, d) symmetric tensors and their names.
+
+    Returns ((n, 3) in 2D / (n, 6) in 3D array, names ``TENSOR_COMPONENTS[d]``); the
+    off-diagonal entries are ½(S_ij + S_ji).
+    """
+    S = np.asarray(S, float)
+    if S.ndim != 3 or S.shape[1] != S.shape[2] or S.shape[1] not in (2, 3):
+        raise ValueError(f"symmetric_tensor: expected an (n, 2, 2) or (n, 3, 3) array, got shape {S.shape}")
+    d = S.shape[1]
+    names = TENSOR_COMPONENTS[d]
+    ij = ["xyz".index(a) for a in "".join(names)]
+    i, j = np.array(ij[0::2]), np.array(ij[1::2])
+    return 0.5 * (S[:, i, j] + S[:, j, i]), names
+
+
 class _DataWriter:
     """Turns arrays into ``DataArray`` elements: inline base64 or one raw appended block.
 
@@ -84,9 +108,10 @@ class _DataWriter:
         self.blocks: list[np.ndarray] = []
         self.offset = 0
 
-    def tag(self, name: str, a: np.ndarray, indent: str = "        ") -> bytes:
+    def tag(self, name: str, a: np.ndarray, indent: str = "        ", components=()) -> bytes:
         # NumberOfComponents only for vectors (VTK's default is 1; meshio then reads 1D arrays)
         comps = f'NumberOfComponents="{a.shape[1]}" ' if a.ndim == 2 else ""
+        comps += "".join(f"ComponentName{i}={quoteattr(str(c))} " for i, c in enumerate(components))
         vtype = _VTK_TYPE[(a.dtype.kind, a.dtype.itemsize)]
         head = f'{indent}<DataArray type="{vtype}" Name={quoteattr(name)} {comps}'
         size = np.array([a.nbytes], dtype="<u8").tobytes()
@@ -117,10 +142,17 @@ def _ids(a) -> np.ndarray:
     return np.ascontiguousarray(a, dtype="<i4" if small else "<i8")
 
 
-def _data_section(w: _DataWriter, tag: str, data: Mapping[str, np.ndarray], n: int, what: str) -> list:
+def _data_section(w: _DataWriter, tag: str, data: Mapping[str, np.ndarray], n: int, what: str,
+                  names: Mapping[str, Sequence[str]]) -> list:
     if not data:
         return []
-    body = [w.tag(str(k), _vtk_array(v, n, f"{what}[{k!r}]")) for k, v in data.items()]
+    body = []
+    for k, v in data.items():
+        a = _vtk_array(v, n, f"{what}[{k!r}]")
+        comps = tuple(names.get(k, ()))
+        if comps and (a.ndim != 2 or len(comps) != a.shape[1]):
+            raise ValueError(f"component_names[{k!r}]: {len(comps)} names for an array of shape {a.shape}")
+        body.append(w.tag(str(k), a, components=comps))
     return [f"      <{tag}>\n".encode(), *body, f"      </{tag}>\n".encode()]
 
 
@@ -129,7 +161,8 @@ def write_unstructured_vtu(path, points: np.ndarray, connectivity: np.ndarray, o
                            faceoffsets: np.ndarray | None = None,
                            cell_data: Mapping[str, np.ndarray] | None = None,
                            point_data: Mapping[str, np.ndarray] | None = None,
-                           encoding: str = "base64") -> Path:
+                           encoding: str = "base64",
+                           component_names: Mapping[str, Sequence[str]] | None = None) -> Path:
     """Write a VTK XML UnstructuredGrid from raw VTK cell arrays (atomically).
 
     Parameters
@@ -148,6 +181,8 @@ def write_unstructured_vtu(path, points: np.ndarray, connectivity: np.ndarray, o
     cell_data, point_data : mapping name -> (n_cells, ...) / (n_points, ...) array
     encoding : {"base64", "raw"}
         Inline base64 (default; any reader) or raw appended binary (VTK/ParaView only).
+    component_names : mapping array name -> one name per component, optional
+        Written as VTK ``ComponentName`` attributes (e.g. from :func:`symmetric_tensor`).
 
     Returns
     -------
@@ -163,8 +198,8 @@ def write_unstructured_vtu(path, points: np.ndarray, connectivity: np.ndarray, o
              b'<VTKFile type="UnstructuredGrid" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n',
              b"  <UnstructuredGrid>\n",
              f'    <Piece NumberOfPoints="{n_pts}" NumberOfCells="{n_cells}">\n'.encode(),
-             *_data_section(w, "PointData", point_data or {}, n_pts, "point_data"),
-             *_data_section(w, "CellData", cell_data or {}, n_cells, "cell_data"),
+             *_data_section(w, "PointData", point_data or {}, n_pts, "point_data", component_names or {}),
+             *_data_section(w, "CellData", cell_data or {}, n_cells, "cell_data", component_names or {}),
              b"      <Points>\n",
              w.tag("Points", _vtk_array(points, n_pts, "points")),
              b"      </Points>\n      <Cells>\n",
@@ -334,7 +369,8 @@ def fracture_cells(fm) -> dict:
 # --------------------------------------------------------------------------- public writers
 
 def write_bulk_vtu(path, mesh, cell_data: Mapping[str, np.ndarray] | None = None,
-                   point_data: Mapping[str, np.ndarray] | None = None, *, encoding: str = "base64") -> Path:
+                   point_data: Mapping[str, np.ndarray] | None = None, *, encoding: str = "base64",
+                   component_names: Mapping[str, Sequence[str]] | None = None) -> Path:
     """Write the mesh's cells as a .vtu file (polygons in 2D, polyhedra in 3D).
 
     Parameters
@@ -346,6 +382,8 @@ def write_bulk_vtu(path, mesh, cell_data: Mapping[str, np.ndarray] | None = None
     point_data : mapping name -> (n_nodes,) or (n_nodes, k) array, optional
     encoding : {"base64", "raw"}
         See :func:`write_unstructured_vtu`.
+    component_names : mapping array name -> component names, optional
+        See :func:`write_unstructured_vtu`.
 
     Returns
     -------
@@ -356,7 +394,8 @@ def write_bulk_vtu(path, mesh, cell_data: Mapping[str, np.ndarray] | None = None
     cd.update(cell_data or {})
     return write_unstructured_vtu(path, c["points"], c["connectivity"], c["offsets"], c["types"],
                                   faces=c.get("faces"), faceoffsets=c.get("faceoffsets"),
-                                  cell_data=cd, point_data=point_data, encoding=encoding)
+                                  cell_data=cd, point_data=point_data, encoding=encoding,
+                                  component_names=component_names)
 
 
 def write_fracture_vtu(path, fm, cell_data: Mapping[str, np.ndarray] | None = None,

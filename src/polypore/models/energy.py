@@ -7,12 +7,15 @@ cancel (−Σ|K| b p_K div^K δu + Σ|σ| p_f [[δu]]_n against the storage |K| 
 
     ΔE + D_friction + D_viscous + D_contact_n + D_numerical + X_τ = W
 
-with E = ½ a(u, u) + ½ Σ|K| p_K²/M + ½ Σ|σ| c_f d_f^{n−1} p_f² (elastic + storage),
+with E = ½ a(u, u) + ½ Σ|K| p_K²/M + ½ Σ|σ| c_f d_f^{n−1} p_f² + ½ S_δ(p, p) (elastic + storage +
+pressure stabilisation; S_δ is the model's pressure-jump form, whose mass-balance term
+S_δ(p^n − p^{n−1}, q) tested with p^n gives ½ S_δ(p^n, p^n) − ½ S_δ(p^{n−1}, p^{n−1}) + ½ S_δ(δp, δp)),
 D_friction = Σ|σ| r_σ |Δ[[u]]_τ| (r = F λ_n Coulomb, g Tresca, 0 frictionless),
 D_viscous = Δt [Σ_K Σ_σ F_Kσ (p_K − p_σ) + Σ_σ Σ_e F_σe (p_f − p_e)
                 + Σ_± |σ| Λ_f/η (p_±σ − p_f)²]
 (with C_f, Λ_f at d_f^{n−1}), D_contact_n = Σ|σ| λ_n [[δu]]_n = −Σ|σ| λ_n^n [[u^{n−1}]]_n ≥ 0,
-D_numerical = ½ a(δu, δu) + ½ Σ|K| δp_K²/M + ½ Σ|σ| c_f d_f^{n−1} δp_f² ≥ 0 (implicit Euler),
+D_numerical = ½ a(δu, δu) + ½ Σ|K| δp_K²/M + ½ Σ|σ| c_f d_f^{n−1} δp_f² + ½ S_δ(δp, δp) ≥ 0
+(implicit Euler),
 X_τ = Σ|σ| λ_τ·Δ[[u]]_τ − D_friction (= 0 at a solution of the contact law) and
 W = ℓ^n·δu (body force, tractions, σ⁰, the reference traction λ⁰) + R^n·δu (Dirichlet reactions)
   + Δt [Σ|K| h_m p_K + Σ|σ| h_f p_f − Σ_{∂Ω faces} F_Kσ p_σ − Σ_{∂Ω fracture ends} F_e p_e]
@@ -34,8 +37,10 @@ import numpy as np
 class EnergyTerms:
     """Energy terms of one step, in J (J/m in 2D).
 
-    ``elastic`` and ``storage`` are the energies at the end of the step; ``delta_*`` their
-    changes over the step (computed as ½ a(δu, u^n + u^{n−1}) etc. to avoid cancellation);
+    ``elastic``, ``storage`` and ``stabilisation`` (½ S_δ(p, p), the pressure-jump form of
+    :meth:`Poromechanics.stabilisation_matrix`) are the energies at the end of the step;
+    ``delta_*`` their changes over the step (computed as ½ a(δu, u^n + u^{n−1}) etc. to avoid
+    cancellation);
     dissipations and works are over the step. ``scale`` bounds the round-off of the balance
     (sum of the magnitudes of every product entering it).
     """
@@ -60,6 +65,8 @@ class EnergyTerms:
     fluid_boundary_work: float
     scale: float
     dilatancy_work: float = 0.0
+    stabilisation: float = 0.0
+    delta_stabilisation: float = 0.0
 
     @property
     def source_work(self) -> float:
@@ -70,8 +77,8 @@ class EnergyTerms:
     @property
     def balance(self) -> float:
         """W − (ΔE + D_friction + D_viscous): ≥ 0 (up to round-off) by the energy estimate."""
-        return self.source_work - (self.delta_elastic + self.delta_storage + self.friction_dissipation
-                                   + self.viscous_dissipation)
+        return self.source_work - (self.delta_elastic + self.delta_storage + self.delta_stabilisation
+                                   + self.friction_dissipation + self.viscous_dissipation)
 
     @property
     def defect(self) -> float:
@@ -79,8 +86,10 @@ class EnergyTerms:
         return self.balance - (self.contact_normal + self.numerical_dissipation + self.contact_tangential_excess)
 
     def summary(self) -> dict:
-        """The ``energy`` entry of summary.json (interface.md)."""
-        return {"elastic": self.elastic, "storage": self.storage, "friction_dissipation": self.friction_dissipation,
+        """The ``energy`` entry of summary.json (interface.md); ``storage`` includes the
+        stabilisation's ½ S_δ(p, p), so that Δ(elastic + storage) + dissipations ≤ source_work."""
+        return {"elastic": self.elastic, "storage": self.storage + self.stabilisation,
+                "friction_dissipation": self.friction_dissipation,
                 "viscous_dissipation": self.viscous_dissipation, "source_work": self.source_work}
 
     def as_dict(self) -> dict:
@@ -132,6 +141,13 @@ def step_energy(model, old, new) -> EnergyTerms:
         d_st += 0.5 * float(np.sum(w * (pf - pf0) * (pf + pf0)))
         num += 0.5 * float(np.sum(w * (pf - pf0) ** 2))
         scale += float(np.sum(w * (pf * pf + pf0 * pf0)))
+    # -- pressure stabilisation S_δ(p^n − p^{n−1}, p^n): stored ½ S_δ(p, p), dissipated ½ S_δ(δp, δp)
+    ws = model.stabilisation_weights
+    jn, j0 = model.stabilisation_jumps(new.p), model.stabilisation_jumps(old.p)
+    stab = 0.5 * float(ws @ (jn * jn))
+    d_stab = 0.5 * float(ws @ ((jn - j0) * (jn + j0)))
+    num += 0.5 * float(ws @ ((jn - j0) ** 2))
+    scale += float(ws @ (jn * jn + j0 * j0))
     # -- contact: friction on the slip increment, normal work, tangential excess
     fric = cn = xt = 0.0
     if nf:
@@ -201,7 +217,7 @@ def step_energy(model, old, new) -> EnergyTerms:
         dil_w = -float(dil.sum())
         scale += float(np.abs(dil).sum())
     return EnergyTerms(t, dt, elastic, storage, d_el, d_st, fric, v_m + v_f + v_x, v_m, v_f, v_x, cn, xt, num,
-                       load_w, reac_w, src_w, bnd_w, scale, dil_w)
+                       load_w, reac_w, src_w, bnd_w, scale, dil_w, stab, d_stab)
 
 
 def check_energy(terms, rtol: float = 1e-9) -> list[str]:
@@ -217,7 +233,7 @@ def check_energy(terms, rtol: float = 1e-9) -> list[str]:
         if not e.balance >= -rtol * e.scale:
             out.append(f"step {k} (t = {e.time:g} s): ΔE + friction + viscous exceeds the work by "
                        f"{-e.balance:.3e} J (tolerance {rtol * e.scale:.1e}; "
-                       f"ΔE = {e.delta_elastic + e.delta_storage:.3e},"
+                       f"ΔE = {e.delta_elastic + e.delta_storage + e.delta_stabilisation:.3e},"
                        f" friction {e.friction_dissipation:.3e}, viscous {e.viscous_dissipation:.3e}, "
                        f"work {e.source_work:.3e})")
     return out

@@ -43,18 +43,21 @@ class Elastic:
 
 
 def check_elastic(E, nu, field: str = "material") -> None:
-    """InputError naming the field unless E > 0 and −1 < ν < 1/2 (elementwise)."""
+    """InputError naming the field unless 0 < E < ∞ and −1 < ν < 1/2 (elementwise)."""
     E = np.asarray(E, float)
     nu = np.asarray(nu, float)
-    if not np.all(E > 0):
-        raise InputError(f"{field}.E", f"Young's modulus must be positive (Pa), got {E.min()!r}")
-    if not np.all((nu > -1) & (nu < 0.5)):
-        bad = nu[~((nu > -1) & (nu < 0.5))].ravel()[0]
-        raise InputError(f"{field}.nu", f"Poisson's ratio must lie in (−1, 0.5), got {bad!r}")
+    bad = E[~((E > 0) & np.isfinite(E))].ravel()
+    if bad.size:
+        raise InputError(f"{field}.E", f"Young's modulus must be positive and finite (Pa), got {float(bad[0])!r}")
+    bad = nu[~((nu > -1) & (nu < 0.5))].ravel()
+    if bad.size:
+        raise InputError(f"{field}.nu", f"Poisson's ratio must lie in (−1, 0.5), got {float(bad[0])!r}")
 
 
-def lame(E: np.ndarray, nu: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(μ, λ_L) in Pa from E (Pa) and ν, elementwise."""
+def lame(E: np.ndarray, nu: np.ndarray, field: str = "material") -> tuple[np.ndarray, np.ndarray]:
+    """(μ, λ_L) in Pa from E (Pa) and ν, elementwise; InputError naming ``field.E`` or
+    ``field.nu`` unless E > 0 and −1 < ν < 1/2 (outside, λ_L or μ would be ≤ 0 or infinite)."""
+    check_elastic(E, nu, field)
     E = np.asarray(E, float)
     nu = np.asarray(nu, float)
     return E / (2 * (1 + nu)), E * nu / ((1 + nu) * (1 - 2 * nu))

@@ -96,6 +96,22 @@ class MechanicsData:
     two_sided: bool = False
     stabilisation: float = 1.0
 
+    def __post_init__(self):
+        # checked where the API builds the data: deep in the assembly a bad μ would only surface
+        # as a non-positive contact β or a singular matrix
+        mu, lam = np.broadcast_arrays(np.asarray(self.mu, float), np.asarray(self.lam, float))
+        _require("mu", mu, (mu > 0) & np.isfinite(mu), "the shear modulus must be positive and finite (Pa)")
+        _require("lam", lam, np.isfinite(lam) & (3 * lam + 2 * mu > 0),
+                 "Lamé's λ must be finite and exceed −2μ/3 (Pa; Poisson's ratio > −1)")
+        b = np.asarray(self.biot, float)
+        _require("biot", b, (b >= 0) & (b <= 1), "the Biot coefficient must lie in [0, 1]")
+
+
+def _require(field_: str, values: np.ndarray, ok: np.ndarray, what: str) -> None:
+    """InputError naming ``field_`` and the first value where ``ok`` fails."""
+    if not np.all(ok):
+        raise InputError(field_, f"{what}, got {float(values[~ok].ravel()[0])!r}")
+
 
 @dataclass
 class MechanicsState:

@@ -28,9 +28,13 @@ class Linearisation:
     ----------
     residual : (n,) residual vector F(x)
     jacobian : (n, n) sparse generalised Jacobian
-    block_norms : dict name -> scaled residual norm (dimensionless, 1 = the scale of the data)
-    counts : dict label -> int (e.g. open / stick / slip faces), logged and used for the
-        "active set unchanged" test
+    block_norms : dict name -> scaled residual norm (dimensionless: each block's residual
+        against the size of its own terms, 1 = nothing solved yet)
+    counts : dict label -> int (e.g. open / stick / slip faces), logged
+    active_set : (n_faces,) contact states, used for the "active set unchanged" test
+    piecewise_linear : the residual is affine while the active set does not change, so that
+        the Newton step that kept it was exact; False for smooth nonlinear terms (dilatancy),
+        which then need the increment test
     """
 
     residual: np.ndarray
@@ -38,6 +42,7 @@ class Linearisation:
     block_norms: dict
     counts: dict = field(default_factory=dict)
     active_set: np.ndarray | None = None
+    piecewise_linear: bool = True
 
 
 @dataclass
@@ -87,7 +92,9 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
     """Run the semi-smooth Newton loop from x0.
 
     Converged when every block norm is ≤ tol and either the last increment is ≤ increment_tol
-    or the active set did not change (then the last linear solve was exact for the final set).
+    or the last full step kept the active set (then the last linear solve was exact for the
+    final set; for a residual that is not piecewise linear, the previous residual must also
+    have been ≤ tol).
     Raises RunError after ``max_iterations`` with the last residuals and state counts.
     """
     x = np.array(x0, float)
@@ -102,6 +109,12 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
     for it in range(options.max_iterations + 1):
         rnorm = max(lin.block_norms.values()) if lin.block_norms else 0.0
         same = prev_active is not None and lin.active_set is not None and np.array_equal(prev_active, lin.active_set)
+        # a full step that kept the active set solved the last linear system exactly when the
+        # residual is affine for a fixed set; with smooth nonlinear terms (dilatancy) the step
+        # after the one that met the tolerance is at round-off (quadratic convergence), which
+        # also covers iterates at rest, where a relative increment test cannot be met
+        exact = same and step == 1.0 and (lin.piecewise_linear
+                                          or bool(history) and history[-1]["residual"] <= options.tol)
         row = {"iteration": it, "residual": rnorm, "increment": inc, "step": step, **lin.block_norms, **lin.counts}
         history.append(row)
         if verbose:
@@ -111,7 +124,7 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
                      inc if np.isfinite(inc) else float("nan"), f" (step {step:g})" if step < 1 else "", states)
         if not np.all(np.isfinite(lin.residual)):
             raise RunError(f"{options.label}: the residual became NaN/Inf at iteration {it}")
-        if rnorm <= options.tol and (inc <= options.increment_tol or same or it == 0 and rnorm == 0.0):
+        if rnorm <= options.tol and (inc <= options.increment_tol or exact or it == 0 and rnorm == 0.0):
             return NewtonResult(x, it, rnorm, lin.counts, history, t_lin, t_asm)
         if same and inc <= 1e-2 * options.increment_tol and rnorm <= options.floor_factor * options.tol:
             log.info("%s: accepted at the round-off floor (residual %.2e, increment %.1e, active set fixed)",
