@@ -173,7 +173,8 @@ def main():
             _print_run(f"penny-pressurised a/{n:g} {rec['label']}", rec)
     extras = [] if args.no_extras else _extras(args.extras_level, args.similar, args.sets, args.series)
     result = {"command": " ".join(["benchmarks/penny_study.py"] + sys.argv[1:]), "pardiso": have_pardiso(),
-              "levels": levels, "level_rule": "mesh.fracture_size = a/n" + (", mesh.grading = 2/n" if args.similar else ""),
+              "levels": levels,
+              "level_rule": "mesh.fracture_size = a/n" + (", mesh.grading = 2/n" if args.similar else ""),
               "overrides": args.sets,
               "runs": runs, "rates": rates, "shear_check": shear, "extras": extras,
               "seconds": time.perf_counter() - t_start}
@@ -255,7 +256,7 @@ def _pc(x):
 
 def _table(runs, rates, shear, extras):
     print("\n| case | h | faces | unknowns | Newton | w/slip L2 | w/slip L2 (rim out) | λ_n L2 | λ_n L2 (rim out) "
-          "| direction (°) | open faces | wall (s) | peak (MB) |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|")
+          "| direction (°) | open faces | wall (s) | peak (MB) |\n" + "|---" * 13 + "|")
     for name, rows in runs.items():
         case = LABELS[name]
         q = "opening" if "opening_L2_rel" in rows[0]["errors"] else "slip"
@@ -293,7 +294,8 @@ def _table(runs, rates, shear, extras):
                   f"{r['slip_over_opening']:.4f} | {r['slip_over_opening_exact']:.4f} | {_pc(d)} |")
         print(f"| fitted rate in h | | | | | | {fit([r['h'] for r in shear], dev):.2f} |")
     if extras:
-        print("\n| case | variant | unknowns | w/slip L2 | w/slip L2 (rim out) | mean w/slip | λ_n L2 (rim out) | other |"
+        print("\n| case | variant | unknowns | w/slip L2 | w/slip L2 (rim out) | mean w/slip | λ_n L2 (rim out) "
+              "| other |"
               "\n|---|---|---|---|---|---|---|---|")
         for r in extras:
             e = r["errors"]
@@ -372,7 +374,8 @@ def _plot_convergence(path, runs, shear):
     if shear:
         h = np.array([r["h"] for r in shear])
         dev = np.array([abs(r["slip_over_opening"] / r["slip_over_opening_exact"] - 1) for r in shear])
-        axes[0].loglog(h, dev, "d:", color="grey", label=f"|slip/opening ÷ 2/(2 − ν) − 1| (rate {fit(h, dev):.2f})")
+        axes[0].loglog(h, dev, "d:", color="grey",
+                       label=f"|slip/opening ÷ 2/(2 − ν) − 1| (rate {fit(h, dev):.2f})")
     hs = np.array([r["h"] for r in next(iter(runs.values()))])
     axes[0].loglog(hs, 0.5 * hs / hs.max() * 0.2, "k:", lw=1, label="slope 1")
     axes[0].set_xlabel("crack face size h / a")

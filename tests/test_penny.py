@@ -49,7 +49,8 @@ def test_sneddon_opening_is_the_total_opening():
 
 def test_stress_intensity_factors_of_the_near_front_fields():
     """The near-front jumps give the handbook K's through the LEFM crack-tip fields:
-    w = 8(1 − ν²)/E K_I √(ρ/2π), Δu_II = 8(1 − ν²)/E K_II √(ρ/2π), Δu_III = 8(1 + ν)/E K_III √(ρ/2π),
+    w = 8(1 − ν²)/E K_I √(ρ/2π), Δu_II = 8(1 − ν²)/E K_II √(ρ/2π),
+    Δu_III = 8(1 + ν)/E K_III √(ρ/2π),
     with Sneddon's K_I = 2q√(a/π) and Kassir & Sih's K_II = 4t√(a/π) cos θ/(2 − ν),
     K_III = 4(1 − ν)t√(a/π) sin θ/(2 − ν) for a uniform shear load t along e1 (θ from e1)."""
     q, t = 3e6, 2e6
@@ -148,7 +149,9 @@ def _coarse(n):
 
 def test_penny_pressurised_runs_and_converges(tmp_path):
     # level a/4 through the command line: the errors are in summary.json
-    argv = ["-q", "run", "penny-pressurised", "--out", str(tmp_path / "o")] + sum((["--set", s] for s in _coarse(4)), [])
+    argv = ["-q", "run", "penny-pressurised", "--out", str(tmp_path / "o")]
+    for s in _coarse(4):
+        argv += ["--set", s]
     assert main(argv) == 0
     coarse = json.loads((tmp_path / "o" / "summary.json").read_text())["errors"]
     assert coarse["faces"] > 150 and coarse["faces_open"] == coarse["faces"] and coarse["faces_wrong_state"] == 0
