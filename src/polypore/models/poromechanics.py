@@ -613,6 +613,9 @@ class Poromechanics:
         u_old = old.u.ravel()
         q_old = (mech.Jv @ u_old).reshape(self.n_ff, d)
         sf = s[self.flow_free]
+        if hasattr(self.solver, "pressure_nullspace"):
+            # the AMG of the pressure Schur block needs the scaled image of a constant pressure
+            self.solver.pressure_nullspace = 1.0 / sf
         ar, ac = self._af_rc
         g_vals = self._g_vals * sf[self._g_cols]                       # columns scaled by s
         af_vals = A_dt.data[self._af_keep] * sf[ar] * sf[ac]           # rows and columns scaled by s
