@@ -155,7 +155,7 @@ def test_penny_pressurised_runs_and_converges(tmp_path):
     assert main(argv) == 0
     coarse = json.loads((tmp_path / "o" / "summary.json").read_text())["errors"]
     assert coarse["faces"] > 150 and coarse["faces_open"] == coarse["faces"] and coarse["faces_wrong_state"] == 0
-    assert coarse["lambda_n_max_over_load"] == 0
+    assert coarse["lambda_n_max_over_load"] < 1e-12          # open faces carry no traction (round-off)
     assert coarse["exact_opening_max"] == pytest.approx(8 * (1 - NU ** 2) * 1e7 / (np.pi * E))
     # measured 32 % / 30 % / −34 % (the discrete crack is too stiff: the opening is uniformly too small)
     assert coarse["opening_L2_rel"] < 0.4 and coarse["opening_L2_rel_away_from_rim"] < 0.4
