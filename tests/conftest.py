@@ -1,6 +1,31 @@
 import numpy as np
 import pytest
 
+# A 2D static contact case on a 4 × 4 grid that loads in milliseconds (input-check tests)
+STATIC_2D = """
+name = "t"
+[mesh]
+generator = "cartesian"
+lower = [0.0, 0.0]
+upper = [1.0, 1.0]
+cells = [4, 4]
+[[fractures]]
+name = "F"
+vertices = [[0.25, 0.5], [0.75, 0.5]]
+[material]
+E = 1e9
+nu = 0.25
+[[mechanics.boundary]]
+name = "ymin"
+u = [0.0, 0.0]
+[[mechanics.boundary]]
+name = "ymax"
+u = [0.0, -0.001]
+[contact]
+friction = 0.5
+"""
+
+
 
 def geometry_defects(mesh):
     """Largest relative defects of the per-cell geometric identities (scheme.md §3).

@@ -5,6 +5,7 @@ import subprocess
 import sys
 
 import pytest
+from conftest import STATIC_2D
 
 from polypore.cli import main
 
@@ -142,28 +143,7 @@ def test_missing_files(tmp_path, cli):
 def test_non_finite_numbers_name_the_field(tmp_path, cli, override, field):
     """TOML spells inf and nan as numbers: rejected where the number is read, before any solve."""
     case = tmp_path / "t.toml"
-    case.write_text("""
-name = "t"
-[mesh]
-generator = "cartesian"
-lower = [0.0, 0.0]
-upper = [1.0, 1.0]
-cells = [4, 4]
-[[fractures]]
-name = "F"
-vertices = [[0.25, 0.5], [0.75, 0.5]]
-[material]
-E = 1e9
-nu = 0.25
-[[mechanics.boundary]]
-name = "ymin"
-u = [0.0, 0.0]
-[[mechanics.boundary]]
-name = "ymax"
-u = [0.0, -0.001]
-[contact]
-friction = 0.5
-""")
+    case.write_text(STATIC_2D)
     code, _, err = cli("run", str(case), "--out", str(tmp_path / "o"), "--set", override)
     assert code == 2 and f"{field}: must be a finite number" in err, err
     assert "Traceback" not in err

@@ -13,28 +13,7 @@ from polypore.core.errors import InputError
 from polypore.models.materials import lame
 from polypore.models.mechanics import MechanicsData
 
-STATIC = """
-name = "t"
-[mesh]
-generator = "cartesian"
-lower = [0.0, 0.0]
-upper = [1.0, 1.0]
-cells = [4, 4]
-[[fractures]]
-name = "F"
-vertices = [[0.25, 0.5], [0.75, 0.5]]
-[material]
-E = 1e9
-nu = 0.25
-[[mechanics.boundary]]
-name = "ymin"
-u = [0.0, 0.0]
-[[mechanics.boundary]]
-name = "ymax"
-u = [0.0, -0.001]
-[contact]
-friction = 0.5
-"""
+from conftest import STATIC_2D as STATIC  # noqa: E402
 
 # 2D poromechanics without fractures and without a [contact] table
 POROUS = """
