@@ -12,30 +12,12 @@ import time
 import tomllib
 
 import pytest
+from conftest import STATIC_2D
 
-TINY = """
-name = "tiny"
-[mesh]
-generator = "cartesian"
-lower = [0.0, 0.0]
-upper = [1.0, 1.0]
-cells = [8, 8]
-[[fractures]]
-name = "F"
-vertices = [[0.25, 0.5], [0.75, 0.5]]
-[material]
-E = 1e9
-nu = 0.25
-[[mechanics.boundary]]
-name = "ymin"
-u = [0.0, 0.0]
-[[mechanics.boundary]]
-name = "ymax"
-u = ["0.01", "-0.001"]
-[contact]
-law = "coulomb"
-friction = 0.1
-"""
+# the conftest case on 8 × 8 cells, sheared so that the fracture slips
+TINY = (STATIC_2D.replace('name = "t"', 'name = "tiny"').replace("cells = [4, 4]", "cells = [8, 8]")
+        .replace("u = [0.0, -0.001]", 'u = ["0.01", "-0.001"]')
+        .replace("friction = 0.5", 'law = "coulomb"\nfriction = 0.1'))
 
 
 @pytest.fixture
