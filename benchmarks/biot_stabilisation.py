@@ -124,14 +124,19 @@ def terzaghi(mesh, delta, n_steps, marks=(0.05, 0.2, 0.5)):
     Tc = 1.0 / CV
     P = column_model(mesh, delta)
     z = P.fm.mesh.geometry.cell_centroid[:, -1]
-    st, _ = P.step(P.initial_state(0.0), 1e-6 * Tc, energy=False)
-    dt = 0.5 * Tc / n_steps
-    at = {round(f * n_steps / 0.5): f for f in marks}
+    return _march(P, 1e-6 * Tc, Tc, 0.5, n_steps, marks, lambda st: _errors(P, st, terzaghi_pressure(z, st.time), PU))
+
+
+def _march(P, first, T, end, n_steps, marks, measure):
+    """An undrained first step of ``first`` (s), then n_steps up to end·T (s); {mark: measure(state)}
+    at the steps that reach mark·T (marks are fractions of the time scale T, s)."""
+    st, _ = P.step(P.initial_state(0.0), first, energy=False)
+    at = {round(f * n_steps / end): f for f in marks}
     out = {}
     for n in range(1, n_steps + 1):
-        st, _ = P.step(st, dt, energy=False)
+        st, _ = P.step(st, end * T / n_steps, energy=False)
         if n in at:
-            out[at[n]] = _errors(P, st, terzaghi_pressure(z, st.time), PU)
+            out[at[n]] = measure(st)
     return out
 
 
@@ -190,16 +195,8 @@ def mandel(mesh, delta, n_steps, sol: Mandel, marks=(0.01, 0.05, 0.2)):
     T = sol.a ** 2 / sol.c
     P = mandel_model(mesh, delta, sol)
     x = P.fm.mesh.geometry.cell_centroid[:, 0]
-    st, _ = P.step(P.initial_state(0.0), 1e-5 * T, energy=False)
-    dt = 0.2 * T / n_steps
-    at = {round(f * n_steps / 0.2): f for f in marks}
-    out = {}
-    for n in range(1, n_steps + 1):
-        st, _ = P.step(st, dt, energy=False)
-        if n in at:
-            fe = abs(plate_force(P, st) + sol.F) / sol.F
-            out[at[n]] = _errors(P, st, sol.pressure(x, st.time), sol.p0) + (fe,)
-    return out
+    return _march(P, 1e-5 * T, T, 0.2, n_steps, marks,
+                  lambda st: _errors(P, st, sol.pressure(x, st.time), sol.p0) + (abs(plate_force(P, st) + sol.F) / sol.F,))
 
 
 # ---- driver ---------------------------------------------------------------------------------------

@@ -1,3 +1,5 @@
+import functools
+
 import numpy as np
 import pytest
 
@@ -103,3 +105,36 @@ def cli(capsys):
         return code, out.out, out.err
 
     return run
+
+
+@functools.lru_cache(maxsize=None)
+def fractured_box(dim: int, n: int):
+    """Unit square/cube, n Cartesian cells a side, one fracture with tips at y (z) = 0.5
+    (x (and y) in [0.25, 0.75]). Cached: meshes are immutable."""
+    from polypore.mesh import FracturedMesh, FractureSpec
+    from polypore.mesh.generators.cartesian import cartesian_mesh, grid_coordinates
+
+    mesh = cartesian_mesh([grid_coordinates(0, 1, n, [0.25, 0.5, 0.75])] * dim)
+    if dim == 2:
+        frac = [FractureSpec("F", np.array([[0.25, 0.5], [0.75, 0.5]]))]
+    else:
+        frac = [FractureSpec("F", np.array([[0.25, 0.25, 0.5], [0.75, 0.25, 0.5], [0.75, 0.75, 0.5],
+                                            [0.25, 0.75, 0.5]]))]
+    return FracturedMesh.build(mesh, frac)
+
+
+def sheared_mechanics(fm, ramp: float, two_sided: bool = False):
+    """MechanicsData of :func:`fractured_box`: E = 10 GPa, ν = 0.2, bottom fixed, top displaced by
+    min(t/ramp, 1)(2e-4 shear, −1e-4) m, Coulomb F = 0.5: the fracture slips while loading."""
+    from polypore.models.materials import lame
+    from polypore.models.mechanics import ContactSpec, DisplacementBC, MechanicsData
+
+    dim, nc = fm.mesh.dim, fm.mesh.n_cells
+    mu, lam = lame(1e10, 0.2)
+    top, bot = ("ymax", "ymin") if dim == 2 else ("zmax", "zmin")
+    utop = np.array([2e-4, -1e-4]) if dim == 2 else np.array([2e-4, 1e-4, -1e-4])
+    return MechanicsData(mu=np.full(nc, mu), lam=np.full(nc, lam),
+                         displacement=[DisplacementBC(bot, tuple(range(dim)), lambda X, t: 0.0 * X),
+                                       DisplacementBC(top, tuple(range(dim)),
+                                                      lambda X, t: np.tile(min(t / ramp, 1.0) * utop, (len(X), 1)))],
+                         contact=ContactSpec("coulomb", 0.5), two_sided=two_sided)

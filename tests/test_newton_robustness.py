@@ -12,14 +12,12 @@ and "Repeatable runs").
 
 from __future__ import annotations
 
-import functools
 import itertools
 
 import numpy as np
 import pytest
+from conftest import fractured_box, sheared_mechanics
 
-from polypore.mesh import FracturedMesh, FractureSpec
-from polypore.mesh.generators.cartesian import cartesian_mesh, grid_coordinates
 from polypore.models.contact import SLIP
 from polypore.models.flow import FlowData, Pressure
 from polypore.models.materials import lame
@@ -36,18 +34,6 @@ ROUND_OFF = 1e-12                                       # measured after one ste
 ZERO = lambda X, t: 0.0 * X  # noqa: E731
 
 
-@functools.lru_cache(maxsize=None)
-def _fractured_box(dim: int, n: int) -> FracturedMesh:
-    """Unit square/cube, n cells a side, with a fracture with tips at y (z) = 0.5."""
-    mesh = cartesian_mesh([grid_coordinates(0, 1, n, [0.25, 0.5, 0.75])] * dim)
-    if dim == 2:
-        frac = [FractureSpec("F", np.array([[0.25, 0.5], [0.75, 0.5]]))]
-    else:
-        frac = [FractureSpec("F", np.array([[0.25, 0.25, 0.5], [0.75, 0.25, 0.5], [0.75, 0.75, 0.5],
-                                            [0.25, 0.75, 0.5]]))]
-    return FracturedMesh.build(mesh, frac)
-
-
 def _flow_data(k, inv_m, b):
     return FlowData(permeability=k, viscosity=1e-3, biot_modulus=np.inf if inv_m == 0 else 1.0 / inv_m,
                     biot_coefficient=b, aperture=1e-4, normal_permeability=k)
@@ -56,7 +42,7 @@ def _flow_data(k, inv_m, b):
 def linear_case(dim, k, inv_m, b, n=8, solver=None):
     """Bottom fixed, constant compression 1 MPa on top (the fracture stays closed and stuck),
     initial pressure 0, pressure 1e5 Pa on xmin from the first step on: the step is linear."""
-    fm = _fractured_box(dim, n)
+    fm = fractured_box(dim, n)
     mu, lam = lame(1e10, 0.2)
     nc = fm.mesh.n_cells
     top, bot = ("ymax", "ymin") if dim == 2 else ("zmax", "zmin")
@@ -71,17 +57,9 @@ def linear_case(dim, k, inv_m, b, n=8, solver=None):
 
 def slip_case(dim, k, inv_m, b, n=8, solver=None):
     """Bottom fixed, top displaced by (t/20 s)(2e-4 shear, −1e-4) m: the fracture slips."""
-    fm = _fractured_box(dim, n)
-    mu, lam = lame(1e10, 0.2)
-    nc = fm.mesh.n_cells
-    top, bot = ("ymax", "ymin") if dim == 2 else ("zmax", "zmin")
-    utop = np.array([2e-4, -1e-4]) if dim == 2 else np.array([2e-4, 1e-4, -1e-4])
-    md = MechanicsData(mu=np.full(nc, mu), lam=np.full(nc, lam),
-                       displacement=[DisplacementBC(bot, tuple(range(dim)), ZERO),
-                                     DisplacementBC(top, tuple(range(dim)),
-                                                    lambda X, t: np.tile(min(t / 20.0, 1.0) * utop, (len(X), 1)))],
-                       contact=ContactSpec("coulomb", 0.5))
-    return Poromechanics(fm, md, _flow_data(k, inv_m, b), {"xmin": Pressure(1e5)}, solver=solver)
+    fm = fractured_box(dim, n)
+    return Poromechanics(fm, sheared_mechanics(fm, 20.0), _flow_data(k, inv_m, b), {"xmin": Pressure(1e5)},
+                         solver=solver)
 
 
 def _linear_step(dim, k, inv_m, b):

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import sheared_mechanics
 
 from polypore.mesh import FracturedMesh, FractureSpec
 from polypore.mesh.generators.cartesian import cartesian_mesh, grid_coordinates
@@ -138,16 +139,8 @@ def shear_case(dim, n, two_sided=False, T=50.0):
     """Fracture with tips in the unit square/cube; bottom fixed, top displaced by
     min(t/T, 1)(shear, −compression) so that the fracture slips while loading, then sticks;
     p = 1e5 Pa on xmin, initial pressure 1e5 Pa, F = 0.5."""
-    mu, lam = _lame(1e10, 0.2)
     fm = FracturedMesh.build(_box(dim, n), _centre_fracture(dim))
-    nc = fm.mesh.n_cells
-    top, bot = ("ymax", "ymin") if dim == 2 else ("zmax", "zmin")
-    utop = np.array([2e-4, -1e-4]) if dim == 2 else np.array([2e-4, 1e-4, -1e-4])
-    md = MechanicsData(mu=np.full(nc, mu), lam=np.full(nc, lam),
-                       displacement=[DisplacementBC(bot, tuple(range(dim)), ZERO),
-                                     DisplacementBC(top, tuple(range(dim)),
-                                                    lambda X, t: np.tile(min(t / T, 1.0) * utop, (len(X), 1)))],
-                       contact=ContactSpec("coulomb", 0.5), two_sided=two_sided)
+    md = sheared_mechanics(fm, T, two_sided)
     fd = FlowData(permeability=1e-15, viscosity=1e-3, biot_modulus=1e10, biot_coefficient=0.5, aperture=1e-4,
                   normal_permeability=1e-15)
     return Poromechanics(fm, md, fd, {"xmin": Pressure(1e5)})
