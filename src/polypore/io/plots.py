@@ -1,4 +1,11 @@
-"""Plots a run writes (PNG, matplotlib's Agg backend: works without a screen)."""
+"""Plots a run writes (PNG, matplotlib's Agg backend: works without a screen).
+
+Every figure of one run uses the same time unit (:func:`time_unit`), and values are shown in
+the SI prefix that suits their magnitude (MPa rather than Pa with a ×10⁷ offset, mm or µm
+rather than m), so that no axis carries an offset label that collides with a panel title.
+Figures with one panel per fracture wrap after :data:`MAX_COLUMNS` fractures so that they
+stay readable on a screen.
+"""
 
 from __future__ import annotations
 
@@ -9,6 +16,8 @@ import numpy as np
 from .atomic import atomic_path
 
 STATE_COLOURS = {"open": "tab:blue", "stick": "tab:green", "slip": "tab:red"}
+MAX_COLUMNS = 3          # fractures side by side before a figure wraps to a new block of rows
+DAY = 86400.0
 
 
 def _plt():
@@ -26,47 +35,120 @@ def save(fig, path) -> None:
     _plt().close(fig)
 
 
-def fracture_profiles(path, names, fracture, s, fields: dict, states, title: str = "", reference: dict | None = None):
-    """One column per fracture, one row per field against the arc length s (2D).
+def time_unit(t_end: float) -> tuple[float, str]:
+    """(seconds per unit, unit name) for the time axes of a run ending at ``t_end`` s.
 
-    fields : name -> (n_ff,) values (label includes the unit); states : (n_ff,) state names;
-    reference : field name -> (s_ref, values) analytic curves drawn as lines.
+    Days once a run lasts more than ten days, seconds otherwise: the same rule for every
+    figure of a run, so its plots never mix seconds and days.
+    """
+    return (DAY, "days") if t_end > 10 * DAY else (1.0, "s")
+
+
+def format_time(t: float, t_end: float) -> str:
+    """``t`` (s) in the run's unit: '100 days', '500 s'."""
+    f, name = time_unit(t_end)
+    return f"{t / f:.4g} {name}"
+
+
+def time_tag(t: float, t_end: float) -> str:
+    """File-name tag of a time: '500' in seconds (as before), '100d' in days."""
+    f, name = time_unit(t_end)
+    return f"{t / f:g}" + ("" if name == "s" else "d")
+
+
+def value_unit(unit: str, magnitude: float) -> tuple[float, str]:
+    """(factor, unit) so that values of the given magnitude read well: Pa → kPa/MPa/GPa,
+    m → mm/µm. Other units are returned unchanged (factor 1)."""
+    m = abs(float(magnitude)) if np.isfinite(magnitude) else 0.0
+    if unit == "Pa":
+        for f, name in ((1e9, "GPa"), (1e6, "MPa"), (1e3, "kPa")):
+            if m >= f:
+                return f, name
+        return 1.0, "Pa"
+    if unit == "m":
+        if m >= 1.0 or m == 0.0:
+            return 1.0, "m"
+        return (1e-3, "mm") if m >= 1e-3 else (1e-6, "µm")
+    return 1.0, unit
+
+
+def _split_label(label: str) -> tuple[str, str]:
+    """'λ_n (Pa)' → ('λ_n', 'Pa'); a label without a unit → (label, '')."""
+    if label.endswith(")") and "(" in label:
+        i = label.rfind("(")
+        return label[:i].rstrip(), label[i + 1:-1]
+    return label, ""
+
+
+def _fracture_blocks(n: int) -> list[list[int]]:
+    """Fracture indices grouped into blocks of at most MAX_COLUMNS (one block per row band)."""
+    return [list(range(a, min(a + MAX_COLUMNS, n))) for a in range(0, n, MAX_COLUMNS)]
+
+
+def fracture_profiles(path, names, fracture, s, fields: dict, states, title: str = "", reference: dict | None = None):
+    """One column per fracture (wrapping after MAX_COLUMNS), one row per field against the
+    arc length s (2D), and a row of contact states.
+
+    fields : label -> (n_ff,) values; the label ends with its SI unit, '(Pa)' or '(m)', and
+        the values are shown in the prefix that suits their magnitude;
+    states : (n_ff,) state names;
+    reference : label -> (s_ref, values) analytic curves drawn as dashed lines.
     """
     plt = _plt()
     nf = len(names)
-    rows = len(fields) + 1
-    fig, axes = plt.subplots(rows, nf, figsize=(3.2 * nf + 1, 2.0 * rows + 0.6), squeeze=False, sharex="col")
     states = np.asarray(states)
-    scale = _row_scales(fields, reference)
-    for j, name in enumerate(names):
-        sel = np.flatnonzero(fracture == j)
-        order = sel[np.argsort(s[sel])]
-        for i, (label, vals) in enumerate(fields.items()):
-            ax = axes[i, j]
-            ax.plot(s[order], vals[order], ".-", ms=3, lw=0.8, label="polypore")
-            shown = [vals[order]]
-            if reference and label in reference and j == 0:
-                sr, vr = reference[label]
-                ax.plot(sr, vr, "k--", lw=1, label="analytic")
-                ax.legend(fontsize=7)
-                shown.append(np.asarray(vr, float))
-            _min_span(ax, np.concatenate(shown), scale[label])
-            if j == 0:
-                ax.set_ylabel(label, fontsize=8)
-            if i == 0:
-                ax.set_title(name, fontsize=9)
+    mags = _row_scales(fields, reference)
+    shown = {}                                     # label -> (display label, factor)
+    for label in fields:
+        base, unit = _split_label(label)
+        f, u = value_unit(unit, mags[label])
+        shown[label] = (f"{base} ({u})" if unit else base, f)
+    nrow = len(fields) + 1
+    blocks = _fracture_blocks(nf)
+    ncol = max(len(b) for b in blocks) if blocks else 1
+    ratios = ([1.0] * len(fields) + [0.35]) * max(len(blocks), 1)
+    fig, axes = plt.subplots(nrow * max(len(blocks), 1), ncol, squeeze=False, layout="constrained",
+                             figsize=(3.4 * ncol + 0.8, sum(ratios) * 1.9 + 0.8),
+                             gridspec_kw={"height_ratios": ratios})
+    for b, block in enumerate(blocks):
+        for col, j in enumerate(block):
+            sel = np.flatnonzero(fracture == j)
+            order = sel[np.argsort(s[sel])]
+            top = b * nrow
+            for i, (label, vals) in enumerate(fields.items()):
+                ax = axes[top + i, col]
+                disp, f = shown[label]
+                vals = np.asarray(vals, float)
+                ax.plot(s[order], vals[order] / f, ".-", ms=3, lw=0.8, label="polypore")
+                seen = [vals[order] / f]
+                if reference and label in reference and j == 0:
+                    sr, vr = reference[label]
+                    ax.plot(sr, np.asarray(vr, float) / f, "k--", lw=1, label="analytic")
+                    ax.legend(fontsize=7, loc="best")
+                    seen.append(np.asarray(vr, float) / f)
+                _min_span(ax, np.concatenate(seen), mags[label] / f)
+                if col == 0:
+                    ax.set_ylabel(disp, fontsize=8)
+                if i == 0:
+                    ax.set_title(names[j], fontsize=9)
+                ax.tick_params(labelsize=7, labelbottom=False)
+                ax.grid(alpha=0.3)
+            ax = axes[top + nrow - 1, col]
+            for st, colour in STATE_COLOURS.items():
+                m = order[states[order] == st]
+                ax.scatter(s[m], np.zeros(m.size), c=colour, s=8, label=st)
+            for i in range(nrow - 1):
+                axes[top + i, col].sharex(ax)
+            ax.set_yticks([])
+            ax.set_xlabel("arc length s (m)", fontsize=8)
+            if col == 0:
+                ax.set_ylabel("state", fontsize=8)
             ax.tick_params(labelsize=7)
-            ax.grid(alpha=0.3)
-        ax = axes[-1, j]
-        for st, col in STATE_COLOURS.items():
-            m = order[states[order] == st]
-            ax.scatter(s[m], np.zeros(m.size), c=col, s=8, label=st)
-        ax.set_yticks([])
-        ax.set_xlabel("arc length s (m)", fontsize=8)
-        if j == 0:
-            ax.set_ylabel("state", fontsize=8)
-            ax.legend(fontsize=7, ncol=3, loc="upper center", bbox_to_anchor=(0.5, -0.45))
-        ax.tick_params(labelsize=7)
+        for col in range(len(block), ncol):
+            for i in range(nrow):
+                axes[b * nrow + i, col].axis("off")
+    handles = [plt.Line2D([], [], ls="", marker="o", ms=4, color=c, label=st) for st, c in STATE_COLOURS.items()]
+    fig.legend(handles=handles, loc="outside lower center", ncol=3, fontsize=7, frameon=False)
     if title:
         fig.suptitle(title, fontsize=10)
     save(fig, path)
@@ -82,7 +164,7 @@ def _row_scales(fields: dict, reference: dict | None) -> dict:
         v = np.concatenate(v)
         v = v[np.isfinite(v)]
         mag[label] = float(v.max()) if v.size else 0.0
-    unit = {label: label[label.rfind("("):] if "(" in label else label for label in fields}
+    unit = {label: _split_label(label)[1] or label for label in fields}
     return {label: max(mag[k] for k in fields if unit[k] == unit[label]) for label in fields}
 
 
@@ -154,40 +236,53 @@ def _cell_polygons(mesh):
     return [P[conn[a:b]] for a, b in zip(starts, off)]
 
 
-def poro_plots(stage, case_name, mesh, net, s, snapshots, series, t_end):
-    """The C4 figures: overpressure maps, contact states along the fractures at T/4 and T,
-    mean aperture and mean fracture pressure per fracture against time (2D; without
-    fractures only the overpressure maps)."""
+def _overpressure_maps(path, case_name, mesh, seg, snapshots, t_end):
+    """Maps of p − p⁰ at the output times; one colour scale (and bar) for all panels."""
     plt = _plt()
-    from matplotlib.collections import PolyCollection
+    from matplotlib.collections import LineCollection, PolyCollection
 
     polys = _cell_polygons(mesh)
-    seg = mesh.face_nodes.values.reshape(-1, 2)[net.faces]
-    # overpressure maps
     k = len(snapshots)
     cols = min(3, k)
     rows = int(np.ceil(k / cols))
     lo, hi = mesh.bounding_box
     aspect = (hi[1] - lo[1]) / max(hi[0] - lo[0], 1e-300)
-    fig, axes = plt.subplots(rows, cols, figsize=(5.2 * cols, 5.2 * cols * aspect / cols * 1.15 * rows + 0.6),
-                             squeeze=False)
     vmax = max(float(np.abs(sn["overpressure"]).max()) for sn in snapshots) or 1.0
+    f, unit = value_unit("Pa", vmax)
+    fig, axes = plt.subplots(rows, cols, squeeze=False, layout="constrained", sharex=True, sharey=True,
+                             figsize=(3.6 * cols + 1.2, 3.6 * aspect * rows + 0.9))
     for ax, sn in zip(axes.ravel(), snapshots):
-        pc = PolyCollection(polys, array=sn["overpressure"], cmap="RdBu_r", edgecolors="none")
-        pc.set_clim(-vmax, vmax)
+        pc = PolyCollection(polys, array=sn["overpressure"] / f, cmap="RdBu_r", edgecolors="none")
+        pc.set_clim(-vmax / f, vmax / f)
         ax.add_collection(pc)
-        for P in mesh.nodes[seg]:
-            ax.plot(P[:, 0], P[:, 1], "k-", lw=1.0)
+        ax.add_collection(LineCollection(mesh.nodes[seg][:, :, :2], colors="k", linewidths=1.0))
         ax.set_xlim(lo[0], hi[0])
         ax.set_ylim(lo[1], hi[1])
         ax.set_aspect("equal")
-        ax.set_title(f"t = {sn['time']:g} s", fontsize=9)
+        ax.set_title(f"t = {format_time(sn['time'], t_end)}", fontsize=9)
         ax.tick_params(labelsize=7)
-        fig.colorbar(pc, ax=ax, shrink=0.8, label="p − p⁰ (Pa)")
+    for c in range(cols):
+        last = axes[(k - 1 - c) // cols, c]          # lowest used panel of the column
+        last.set_xlabel("x (m)", fontsize=8)
+        last.tick_params(labelbottom=True)
+    for ax in axes.ravel():
+        ax.locator_params(axis="x", nbins=5)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("y (m)", fontsize=8)
     for ax in axes.ravel()[k:]:
         ax.axis("off")
+    fig.colorbar(pc, ax=axes.ravel().tolist(), shrink=0.8, label=f"p − p⁰ ({unit})")
     fig.suptitle(f"{case_name}: matrix overpressure", fontsize=10)
-    save(fig, stage / "overpressure.png")
+    save(fig, path)
+
+
+def poro_plots(stage, case_name, mesh, net, s, snapshots, series, t_end):
+    """The C4 figures: overpressure maps, contact states along the fractures at T/4 and T,
+    mean aperture and mean fracture pressure per fracture against time (2D; without
+    fractures only the overpressure maps). Times in the run's unit (:func:`time_unit`)."""
+    plt = _plt()
+    seg = mesh.face_nodes.values.reshape(-1, 2)[net.faces]
+    _overpressure_maps(stage / "overpressure.png", case_name, mesh, seg, snapshots, t_end)
     if not net.n_faces:
         return
     # contact states along the fractures at T/4 and T
@@ -196,33 +291,40 @@ def poro_plots(stage, case_name, mesh, net, s, snapshots, series, t_end):
     for j in picks:
         sn = snapshots[j]
         fields = {"λ_n (Pa)": sn["lambda_n"], "|[[u]]_τ| (m)": sn["jump_t"], "aperture (m)": sn["aperture"]}
-        fracture_profiles(stage / f"contact_t{sn['time']:g}.png", net.names, net.fracture, s, fields,
+        fracture_profiles(stage / f"contact_t{time_tag(sn['time'], t_end)}.png", net.names, net.fracture, s, fields,
                           [("open", "stick", "slip")[v] for v in sn["state"]],
-                          title=f"{case_name}: contact along the fractures at t = {sn['time']:g} s")
+                          title=f"{case_name}: contact along the fractures at t = {format_time(sn['time'], t_end)}")
     # mean aperture and mean fracture pressure per fracture against time
-    t = np.array([r["time"] for r in series])
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    tf, tname = time_unit(t_end)
+    t = np.array([r["time"] for r in series]) / tf
+    ap = {name: np.array([r[name][0] for r in series], float) for name in net.names}
+    pf = {name: np.array([r[name][1] for r in series], float) for name in net.names}
+    fa, ua = value_unit("m", max((np.abs(v).max() for v in ap.values()), default=0.0))
+    fp, up = value_unit("Pa", max((np.abs(v).max() for v in pf.values()), default=0.0))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.4), layout="constrained")
     for name in net.names:
-        a1.plot(t, [r[name][0] for r in series], label=name)
-        a2.plot(t, [r[name][1] for r in series], label=name)
-    a1.set_xlabel("t (s)")
-    a1.set_ylabel("mean aperture (m)")
-    a2.set_xlabel("t (s)")
-    a2.set_ylabel("mean fracture pressure (Pa)")
+        a1.plot(t, ap[name] / fa, label=name)
+        a2.plot(t, pf[name] / fp, label=name)
+    a1.set_ylabel(f"mean aperture ({ua})")
+    a2.set_ylabel(f"mean fracture pressure ({up})")
     for a in (a1, a2):
+        a.set_xlabel(f"t ({tname})")
         a.grid(alpha=0.3)
-        a.legend(fontsize=8)
+    fig.legend(*a1.get_legend_handles_labels(), loc="outside lower center", ncol=min(len(net.names), 6),
+               fontsize=8, frameon=False)
     fig.suptitle(f"{case_name}: fracture means against time", fontsize=10)
     save(fig, stage / "fracture_means.png")
 
 
-def monitor_plots(stage, case_name, net, s, monitor: dict, snapshots, onset, unit_time=1.0, time_label="t (s)"):
+def monitor_plots(stage, case_name, net, s, monitor: dict, snapshots, onset, unit_time=None, time_label=None):
     """Monitoring figures of a poromechanics run (C6).
 
     monitor : {"time": (n,), "points": {name: (n,) overpressure, Pa}, "fault_p": {fracture: (n,)
         max p_f, Pa}, "fault_slip": {fracture: (n,) max slip since the start, m}}
     snapshots : output snapshots with "time", "slip" (n_ff,) and "aperture" (n_ff,)
     onset : time of the first slipping face (s) or None
+    unit_time, time_label : seconds per plotted time unit and the axis label; by default the
+        run's unit from :func:`time_unit` (the same as the other figures of the run).
     Writes monitor.png (pressures and max slip against time; not without monitor points and
     fractures) and slip_profiles.png (slip and aperture along each fracture at every output
     time, against the arc length s; not without fractures).
@@ -230,8 +332,12 @@ def monitor_plots(stage, case_name, net, s, monitor: dict, snapshots, onset, uni
     if not monitor["points"] and not net.n_faces:
         return                     # nothing to monitor
     plt = _plt()
+    t_end = float(np.max(monitor["time"])) if len(monitor["time"]) else 0.0
+    if unit_time is None:
+        unit_time, name = time_unit(t_end)
+        time_label = f"t ({name})"
     t = np.asarray(monitor["time"]) / unit_time
-    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
+    fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.6), layout="constrained")
     for name, p in monitor["points"].items():
         a1.plot(t, np.asarray(p) / 1e6, label=f"matrix at {name}")
     for name, p in monitor["fault_p"].items():
@@ -243,31 +349,56 @@ def monitor_plots(stage, case_name, net, s, monitor: dict, snapshots, onset, uni
             a.axvline(onset / unit_time, color="0.4", lw=0.8, ls=":", label="slip onset")
         a.set_xlabel(time_label)
         a.grid(alpha=0.3)
-        if a.get_legend_handles_labels()[0]:     # the slip panel is empty without fractures
-            a.legend(fontsize=8)
+        handles, labels = a.get_legend_handles_labels()
+        if handles:                # the slip panel is empty without fractures
+            # below the axes: inside, the legend hides the curves it names
+            a.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
     a1.set_ylabel("overpressure (MPa)")
     a2.set_ylabel("slip |[[u − u⁰]]_τ| (mm)")
     fig.suptitle(f"{case_name}: pressures and slip against time", fontsize=10)
     save(fig, stage / "monitor.png")
-    nfr = len(net.names)
     if not net.n_faces:
         return
-    fig, axes = plt.subplots(2, nfr, figsize=(4.5 * nfr + 1, 6), squeeze=False, sharex="col")
+    _slip_profiles(stage / "slip_profiles.png", case_name, net, s, snapshots, unit_time, time_label)
+
+
+def _slip_profiles(path, case_name, net, s, snapshots, unit_time, time_label):
+    """Slip and aperture along every fracture at every output time (wrapped after
+    MAX_COLUMNS fractures; one legend of times for the figure)."""
+    plt = _plt()
+    blocks = _fracture_blocks(len(net.names))
+    ncol = max(len(b) for b in blocks)
+    amax = max(float(np.abs(sn["aperture"]).max()) for sn in snapshots) if snapshots else 0.0
+    smax = max(float(np.abs(sn["slip"]).max()) for sn in snapshots) if snapshots else 0.0
+    fa, ua = value_unit("m", amax)
+    fs, us = value_unit("m", smax)
+    fig, axes = plt.subplots(2 * len(blocks), ncol, squeeze=False, layout="constrained",
+                             figsize=(4.0 * ncol + 0.8, 3.0 * 2 * len(blocks) + 0.8))
     cmap = plt.get_cmap("viridis")
-    for j, name in enumerate(net.names):
-        sel = np.flatnonzero(net.fracture == j)
-        order = sel[np.argsort(s[sel])]
-        for k, sn in enumerate(snapshots):
-            c = cmap(k / max(len(snapshots) - 1, 1))
-            lab = f"t = {sn['time'] / unit_time:.4g}"
-            axes[0, j].plot(s[order], sn["slip"][order] * 1e3, color=c, lw=1, label=lab)
-            axes[1, j].plot(s[order], sn["aperture"][order] * 1e6, color=c, lw=1, label=lab)
-        axes[0, j].set_title(name, fontsize=9)
-        axes[1, j].set_xlabel("arc length along the fracture (m)")
-        for a in axes[:, j]:
-            a.grid(alpha=0.3)
-    axes[0, 0].set_ylabel("slip (mm)")
-    axes[1, 0].set_ylabel("aperture (µm)")
-    axes[0, -1].legend(fontsize=7, title=time_label.split(" ")[-1], title_fontsize=7)
+    for b, block in enumerate(blocks):
+        for col, j in enumerate(block):
+            sel = np.flatnonzero(net.fracture == j)
+            order = sel[np.argsort(s[sel])]
+            top, bottom = axes[2 * b, col], axes[2 * b + 1, col]
+            for k, sn in enumerate(snapshots):
+                c = cmap(k / max(len(snapshots) - 1, 1))
+                lab = f"t = {sn['time'] / unit_time:.4g}"
+                top.plot(s[order], sn["slip"][order] / fs, color=c, lw=1, label=lab)
+                bottom.plot(s[order], sn["aperture"][order] / fa, color=c, lw=1, label=lab)
+            top.sharex(bottom)
+            top.tick_params(labelbottom=False)
+            top.set_title(net.names[j], fontsize=9)
+            bottom.set_xlabel("arc length along the fracture (m)", fontsize=8)
+            for a in (top, bottom):
+                a.grid(alpha=0.3)
+                a.tick_params(labelsize=7)
+            if col == 0:
+                top.set_ylabel(f"slip ({us})", fontsize=8)
+                bottom.set_ylabel(f"aperture ({ua})", fontsize=8)
+        for col in range(len(block), ncol):
+            axes[2 * b, col].axis("off")
+            axes[2 * b + 1, col].axis("off")
+    handles, labels = axes[0, 0].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside right upper", fontsize=7, title=time_label, title_fontsize=7)
     fig.suptitle(f"{case_name}: slip and aperture along the fractures", fontsize=10)
-    save(fig, stage / "slip_profiles.png")
+    save(fig, path)
