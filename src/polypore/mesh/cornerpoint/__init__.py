@@ -1,0 +1,24 @@
+"""Corner-point (Eclipse GRDECL) grids: reader, generator, writer, edge-conformal processor, faults.
+
+Typical use::
+
+    from polypore.mesh.cornerpoint import read_grdecl, process_grid, fractured_mesh
+
+    grid = read_grdecl("model.grdecl")
+    mesh, info = process_grid(grid)               # Mesh + CornerPointInfo
+    fm = fractured_mesh(mesh, info, ["F1", "F2"])  # selected faults as contact surfaces
+
+See docs/cornerpoint.md.
+"""
+
+from .faults import detect_faults, fault_faces, fault_normals, fractured_mesh
+from .generate import FaultSpec, generate_grid, write_grdecl
+from .process import BOUNDARY_NAMES, MILLIDARCY, CornerPointInfo, cell_permeability, pillar_points, process_grid
+from .reader import CornerPointGrid, read_grdecl
+
+__all__ = [
+    "CornerPointGrid", "CornerPointInfo", "FaultSpec", "BOUNDARY_NAMES",
+    "read_grdecl", "write_grdecl", "generate_grid", "process_grid", "pillar_points", "cell_permeability",
+    "MILLIDARCY",
+    "detect_faults", "fault_faces", "fault_normals", "fractured_mesh",
+]
