@@ -2,16 +2,15 @@
 
 a(u, v) = Σ_K |K| σ^K(u) : ε^K(v) + Σ_K h_K^{d-2} (2μ_K + λ_K) S_K(u, v), assembled from the
 sparse operators as Σ_K |K| [μ (∇u:∇v + ∇u:∇vᵀ) + λ div u div v] + Pᵀ H P, so that no
-dense local matrix is ever stored. Degrees of freedom are interleaved: slot a,
-component i ↦ a·d + i.
+dense local matrix is ever stored. The quadratic space (mechanics.order = 2) uses the same
+form with a sum over quadrature points in place of the sum over cells, and no stabilisation.
+Degrees of freedom are interleaved: slot a, component i ↦ a·d + i.
 """
 
 from __future__ import annotations
 
 import numpy as np
 import scipy.sparse as sp
-
-from ..discretisation import Operators
 
 
 def interleave(blocks, d: int) -> sp.csr_array:
@@ -32,31 +31,37 @@ def interleave(blocks, d: int) -> sp.csr_array:
     return A.tocsr()
 
 
-def elasticity_matrix(ops: Operators, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 1.0) -> sp.csr_array:
+def elasticity_matrix(ops, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 1.0) -> sp.csr_array:
     """Stiffness matrix (n_dofs, n_dofs) in N/m (J/m² in 2D).
+
+    Σ_q w_q [μ (∇u:∇v + ∇u:∇vᵀ) + λ div u div v] over the rows q of ``ops.D`` (quadrature points
+    ``ops.qp_cell``, weights ``ops.qp_weight``: one per cell with weight |K| for
+    :class:`~polypore.discretisation.Operators`), plus the stabilisation when ``ops.stab`` is set.
 
     Parameters
     ----------
+    ops : Operators or QuadraticOperators
     mu, lam : (n_cells,) Lamé parameters μ and λ_L in Pa.
     stab_scale : factor on the stabilisation (1 in the scheme; 0 gives the unstabilised
         form, whose kernel contains the rigid motions).
     """
     mesh = ops.space.fm.mesh
     d = mesh.dim
-    vol = mesh.geometry.cell_volume
-    Wmu = sp.diags_array(vol * mu)
-    Wlam = sp.diags_array(vol * lam)
+    w, cell = ops.qp_weight, ops.qp_cell
+    Wmu = sp.diags_array(w * mu[cell])
+    Wlam = sp.diags_array(w * lam[cell])
     D = ops.D
     lap = sum(Dq.T @ Wmu @ Dq for Dq in D)
-    h = mesh.geometry.cell_diameter
-    cell = ops.stab_cell
-    H = sp.diags_array(stab_scale * (h ** (d - 2) * (2 * mu + lam))[cell])
-    S = ops.stab.T @ H @ ops.stab
+    S = None
+    if ops.stab is not None:
+        h = mesh.geometry.cell_diameter
+        H = sp.diags_array(stab_scale * (h ** (d - 2) * (2 * mu + lam))[ops.stab_cell])
+        S = ops.stab.T @ H @ ops.stab
     blocks = [[None] * d for _ in range(d)]
     for i in range(d):
         for j in range(d):
             B = D[j].T @ Wmu @ D[i] + D[i].T @ Wlam @ D[j]
             if i == j:
-                B = B + lap + S
+                B = B + lap if S is None else B + lap + S
             blocks[i][j] = B
     return interleave(blocks, d)

@@ -107,6 +107,28 @@ class Operators:
         """(n_cells, d, d) ∇^K v for slot values v (n_slots, d)."""
         return np.stack([Dj @ v for Dj in self.D], axis=2)
 
+    # one "quadrature point" per cell (the centroid, weight |K|): the interface of
+    # QuadraticOperators, under which ``D`` and ``value`` are rows per quadrature point
+    @property
+    def qp_cell(self) -> np.ndarray:
+        """(n_cells,) int32 cell of every row of ``D``."""
+        return np.arange(self.space.fm.mesh.n_cells, dtype=INDEX)
+
+    @property
+    def qp_weight(self) -> np.ndarray:
+        """(n_cells,) |K| in m^d."""
+        return self.space.fm.mesh.geometry.cell_volume
+
+    @property
+    def qp_point(self) -> np.ndarray:
+        """(n_cells, d) x̄_K in m."""
+        return self.space.fm.mesh.geometry.cell_centroid
+
+    @property
+    def value(self) -> sp.csr_array:
+        """v̄_K (= Π^K v at x̄_K): the value operator at the quadrature points."""
+        return self.mean
+
 
 def _stabilisation(space, mesh, G, w, is_node):
     """Rows v_Ks − Π^K v(x_s) for every (K, s), then v_Kσ for every bubble."""

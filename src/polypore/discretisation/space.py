@@ -80,6 +80,11 @@ class DisplacementSpace:
         return self.fm.sides.n_sides
 
     @property
+    def n_point_slots(self) -> int:
+        """Slots that are point values (the node sides); the bubbles follow them."""
+        return self.n_sides
+
+    @property
     def n_bubbles(self) -> int:
         return self.bubble_face.size
 

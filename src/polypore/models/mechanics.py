@@ -23,7 +23,7 @@ import scipy.sparse as sp
 from ..assembly.elasticity import elasticity_matrix
 from ..assembly.pattern import Pattern
 from ..core.errors import InputError
-from ..discretisation import DisplacementSpace, Operators
+from ..discretisation import DisplacementSpace, Operators, QuadraticOperators, QuadraticSpace
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
 from ..solvers.linear import LinearSolver
@@ -79,8 +79,11 @@ class MechanicsData:
     fracture_pressure : p_f(X, t) in Pa at fracture face centroids, or None
     initial_stress : σ⁰(X, t) in Pa at cell centroids (total stress = σ⁰ + σ(u)), or None
     contact : ContactSpec
-    two_sided : bubbles on both sides of fracture faces (default: one-sided)
-    stabilisation : scale of the stabilisation S (1 in the scheme)
+    two_sided : bubbles on both sides of fracture faces (default: one-sided; order 2: the 3D face
+        bubbles, 2D has none)
+    stabilisation : scale of the stabilisation S (1 in the scheme; unused by order 2)
+    order : 1 (nodal + bubble space, scheme.md §3) or 2 (quadratic displacements on simplicial
+        meshes, :mod:`polypore.discretisation.quadratic`; P0 multipliers on the face-mean jumps)
     """
 
     mu: np.ndarray
@@ -95,6 +98,7 @@ class MechanicsData:
     contact: ContactSpec = field(default_factory=ContactSpec)
     two_sided: bool = False
     stabilisation: float = 1.0
+    order: int = 1
 
     def __post_init__(self):
         # checked where the API builds the data: deep in the assembly a bad μ would only surface
@@ -105,6 +109,9 @@ class MechanicsData:
                  "Lamé's λ must be finite and exceed −2μ/3 (Pa; Poisson's ratio > −1)")
         b = np.asarray(self.biot, float)
         _require("biot", b, (b >= 0) & (b <= 1), "the Biot coefficient must lie in [0, 1]")
+        if isinstance(self.order, bool) or self.order not in (1, 2):
+            raise InputError("mechanics.order", f"the displacement order must be 1 (nodal + bubble space) or 2 "
+                             f"(quadratic, simplicial meshes), got {self.order!r}")
 
 
 def _require(field_: str, values: np.ndarray, ok: np.ndarray, what: str) -> None:
@@ -193,8 +200,13 @@ class ContactMechanics:
         self.fm, self.data = fm, data
         mesh, net = fm.mesh, fm.network
         self.dim = d = mesh.dim
-        self.space = DisplacementSpace.build(fm, data.two_sided)
-        self.ops = Operators.build(self.space)
+        self.order = int(data.order)
+        if self.order == 2:
+            self.space = QuadraticSpace.build(fm, data.two_sided)
+            self.ops = QuadraticOperators.build(self.space)
+        else:
+            self.space = DisplacementSpace.build(fm, data.two_sided)
+            self.ops = Operators.build(self.space)
         mu, lam = np.broadcast_to(data.mu, (mesh.n_cells,)), np.broadcast_to(data.lam, (mesh.n_cells,))
         self.mu, self.lam = mu, lam
         self.A = elasticity_matrix(self.ops, mu, lam, data.stabilisation)
@@ -211,7 +223,7 @@ class ContactMechanics:
         vals = np.repeat(J.data, d)
         self.Jv = sp.csr_array((vals, (rows, cols)), shape=(self.n_ff * d, self.n_dofs))
         self.Bv = sp.csr_array((vals * np.repeat(self.face_area[J.row], d), (rows, cols)), shape=self.Jv.shape)
-        self._face_means = {}          # traction boundaries: face-mean operators, built on first use
+        self._face_means = {}          # traction boundaries: face-mean operators (order 2: face quadratures)
         self._setup_dirichlet()
         self._setup_contact()
         self._setup_pattern(J)
@@ -220,9 +232,9 @@ class ContactMechanics:
             self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8)
         self.newton = newton or NewtonOptions(label="contact Newton")
         self.seconds_setup = time.perf_counter() - t0
-        log.info("mechanics: %d displacement dofs (%d free), %d multipliers, %s bubbles; set up in %.2f s",
-                 self.n_dofs, self.free.size, self.n_ff * d, "two-sided" if data.two_sided else "one-sided",
-                 self.seconds_setup)
+        log.info("mechanics: order %d, %d displacement dofs (%d free), %d multipliers, %s bubbles; set up in %.2f s",
+                 self.order, self.n_dofs, self.free.size, self.n_ff * d,
+                 "two-sided" if data.two_sided else "one-sided", self.seconds_setup)
 
     def block_solver(self, rtol: float = 1e-8, rho: float = 0.1):
         """GMRES + AMG on the condensed displacement block (3D sizes), see solvers/block_contact.py."""
@@ -242,7 +254,7 @@ class ContactMechanics:
         from ..solvers.linear import rigid_body_modes
 
         R = np.zeros((self.n_dofs, 3 if self.dim == 2 else 6))
-        R[: self.space.n_sides * self.dim] = rigid_body_modes(self.side_points)
+        R[: self.space.n_point_slots * self.dim] = rigid_body_modes(self.slot_points)
         return R[self.free]
 
     # ---- set-up -------------------------------------------------------------------------
@@ -254,15 +266,14 @@ class ContactMechanics:
 
     def _setup_dirichlet(self):
         d = self.dim
-        comp_mask = np.zeros((self.space.n_sides, d), bool)
+        comp_mask = np.zeros((self.space.n_point_slots, d), bool)
         self._dir_groups = []
         for k, bc in enumerate(self.data.displacement):
             faces = self._boundary_faces(bc.boundary, f"mechanics.boundary.{bc.boundary}")
             comps = tuple(int(c) for c in bc.components)
             if not comps or any(c < 0 or c >= d for c in comps):
                 raise InputError(f"mechanics.boundary.{bc.boundary}", f"components must be in 0..{d - 1}, got {comps}")
-            _, _, slot, _ = face_entries(self.space, faces)
-            slot = np.unique(slot)
+            slot = np.unique(self._face_slots(faces))
             comp_mask[np.ix_(slot, comps)] = True
             self._dir_groups.append((slot, comps, bc.value))
         constrained = comp_mask.any(axis=0)
@@ -273,13 +284,27 @@ class ContactMechanics:
                                 "(too few Dirichlet nodes)")
                              + "; give a displacement (u, ux, uy, uz) on some boundary part")
         dofs = np.zeros(self.n_dofs, bool)
-        dofs[: self.space.n_sides * d] = comp_mask.ravel()
+        dofs[: self.space.n_point_slots * d] = comp_mask.ravel()
         self.is_dirichlet = dofs
         self.free = np.flatnonzero(~dofs)
         self.fixed = np.flatnonzero(dofs)
         self.free_index = np.full(self.n_dofs, -1, np.int64)
         self.free_index[self.free] = np.arange(self.free.size)
-        self.side_points = _side_points(self.space)
+        # evaluation point of every point slot (vertex, or edge midpoint for order 2), m
+        self.slot_points = _side_points(self.space) if self.order == 1 else self.space.slot_points()
+
+    def _face_slots(self, faces: np.ndarray) -> np.ndarray:
+        """Point slots on the given boundary faces (their vertices, and edges for order 2)."""
+        if self.order == 1:
+            return face_entries(self.space, faces)[2]
+        vs, es = self.space.face_slots(faces)
+        return np.concatenate([vs.ravel(), es.ravel()])
+
+    def _face_mean(self, faces: np.ndarray, cells: np.ndarray | None = None) -> sp.csr_array:
+        """(len(faces), n_slots) face mean of the trace from ``cells`` without bubbles."""
+        if self.order == 1:
+            return face_mean_operator(self.space, faces, cells)
+        return self.space.face_mean_operator(faces, cells)
 
     def _setup_contact(self):
         c = self.data.contact
@@ -325,7 +350,7 @@ class ContactMechanics:
         d = self.dim
         u = np.zeros((self.space.n_slots, d))
         for slot, comps, fn in self._dir_groups:
-            val = np.asarray(fn(self.side_points[slot], t), float).reshape(len(slot), d)
+            val = np.asarray(fn(self.slot_points[slot], t), float).reshape(len(slot), d)
             u[np.ix_(slot, comps)] = val[:, comps]
         return u.ravel()
 
@@ -335,26 +360,35 @@ class ContactMechanics:
         g = mesh.geometry
         data = self.data
         F = np.zeros((self.space.n_slots, d))
-        xK = g.cell_centroid
-        vol = g.cell_volume
+        # cell integrals by the operators' quadrature: one point per cell (x̄_K, |K|) for order 1
+        ops = self.ops
+        xq, wq, cq = ops.qp_point, ops.qp_weight, ops.qp_cell
         if data.body_force is not None:
-            f = np.asarray(data.body_force(xK, t), float).reshape(-1, d)
-            F += self.ops.mean.T @ (vol[:, None] * f)
+            f = np.asarray(data.body_force(xq, t), float).reshape(-1, d)
+            F += ops.value.T @ (wq[:, None] * f)
         for bc in data.traction:
             faces = self._boundary_faces(bc.boundary, f"mechanics.boundary.{bc.boundary}")
-            gv = np.asarray(bc.value(g.face_centroid[faces], t), float).reshape(-1, d)
+            if self.order == 1:
+                gv = np.asarray(bc.value(g.face_centroid[faces], t), float).reshape(-1, d)
+                if bc.boundary not in self._face_means:
+                    self._face_means[bc.boundary] = face_mean_operator(self.space, faces)
+                F += self._face_means[bc.boundary].T @ (g.face_area[faces][:, None] * gv)
+                continue
+            # order 2: ∫_σ g·v with the P2 trace, by a face rule exact for quadratic g
             if bc.boundary not in self._face_means:
-                self._face_means[bc.boundary] = face_mean_operator(self.space, faces)
-            F += self._face_means[bc.boundary].T @ (g.face_area[faces][:, None] * gv)
+                self._face_means[bc.boundary] = self.space.trace_quadrature(faces)
+            P, W, V = self._face_means[bc.boundary]
+            gv = np.asarray(bc.value(P, t), float).reshape(-1, d)
+            F += V.T @ (W[:, None] * gv)
         if data.matrix_pressure is not None:
-            p = np.asarray(data.matrix_pressure(xK, t), float) * np.broadcast_to(data.biot, (mesh.n_cells,))
+            p = np.asarray(data.matrix_pressure(xq, t), float) * np.broadcast_to(data.biot, (mesh.n_cells,))[cq]
             for j in range(d):
-                F[:, j] += self.ops.D[j].T @ (vol * p)
+                F[:, j] += ops.D[j].T @ (wq * p)
         if data.initial_stress is not None:
-            S0 = np.asarray(data.initial_stress(xK, t), float).reshape(-1, d, d)
+            S0 = np.asarray(data.initial_stress(xq, t), float).reshape(-1, d, d)
             for i in range(d):
                 for j in range(d):
-                    F[:, i] -= self.ops.D[j].T @ (vol * S0[:, i, j])
+                    F[:, i] -= ops.D[j].T @ (wq * S0[:, i, j])
         if data.fracture_pressure is not None and self.n_ff:
             pf = np.asarray(data.fracture_pressure(g.face_centroid[self.fm.network.faces], t), float)
             F -= self.jump_scalar.T @ ((self.face_area * pf)[:, None] * self.normal)
@@ -436,17 +470,19 @@ class ContactMechanics:
         Nodal slots: u|_K(x_s) (evaluated on the side's own piece for data discontinuous across
         Γ); bubbles: (1/|σ|)∫_σ γ^{Kσ}u − the nodal face mean from K, the face integral by a
         quadrature exact for quadratics on the face's sub-triangles (3D) or 3-point Gauss (2D).
+        Order 2: point slots take u at vertices and edge midpoints, the face bubbles (mean 1)
+        the face mean of u minus that of the P2 trace; quadratic fields are reproduced.
         """
         d = self.dim
         u = np.zeros((self.space.n_slots, d))
-        u[: self.space.n_sides] = np.asarray(fn(self.side_points, t), float).reshape(-1, d)
+        npt = self.space.n_point_slots
+        u[:npt] = np.asarray(fn(self.slot_points, t), float).reshape(-1, d)
         if self.space.n_bubbles:
             mesh = self.fm.mesh
             faces = self.fm.network.faces[self.space.bubble_face]
             cells = self.space.bubble_cell
             mean = _face_average(mesh, faces, cells, fn, t)
-            M = face_mean_operator(self.space, faces, cells)
-            u[self.space.n_sides:] = mean - M @ u
+            u[npt:] = mean - self._face_mean(faces, cells) @ u
         return u
 
     # ---- post-processing ---------------------------------------------------------------------
@@ -455,7 +491,7 @@ class ContactMechanics:
         return self.jump_scalar @ st.u
 
     def gradients(self, st: MechanicsState) -> np.ndarray:
-        """(n_cells, d, d) ∇^K u."""
+        """(n_cells, d, d) ∇^K u (order 2: the cell mean of ∇u)."""
         return self.ops.gradient(st.u)
 
     def stress(self, st: MechanicsState) -> np.ndarray:
@@ -466,7 +502,7 @@ class ContactMechanics:
         return 2 * self.mu[:, None, None] * eps + (self.lam * tr)[:, None, None] * np.eye(self.dim)
 
     def cell_displacement(self, st: MechanicsState) -> np.ndarray:
-        """(n_cells, d) Π^K u at the cell centroid (= ū_K), m."""
+        """(n_cells, d) Π^K u at the cell centroid (= ū_K; order 2: the cell mean of u), m."""
         return self.ops.mean @ st.u
 
     def node_displacement(self, st: MechanicsState) -> np.ndarray:

@@ -201,15 +201,17 @@ class Poromechanics:
 
     # ---- set-up -------------------------------------------------------------------------
     def _setup_coupling(self):
-        """G (n_dofs, n_flow): |K| b div^K on cells, −|σ| [[·]]·n⁺ on fracture pressures."""
-        mech, d, g = self.mech, self.dim, self.fm.mesh.geometry
+        """G (n_dofs, n_flow): b ∫_K div v on cells (|K| b div^K v for order 1, by the operators'
+        quadrature for order 2), −|σ| [[·]]·n⁺ on fracture pressures."""
+        mech, d = self.mech, self.dim
         nc = self.fm.mesh.n_cells
+        qcell, qw = mech.ops.qp_cell, mech.ops.qp_weight     # order 1: (K, |K|), one row of D per cell
         rows, cols, vals = [], [], []
         for j in range(d):
             Dj = mech.ops.D[j].tocoo()
-            rows.append(Dj.col.astype(np.int64) * d + j)          # div^K v = Σ_j ∂_j v_j
-            cols.append(self.dofs.n + Dj.row.astype(np.int64))
-            vals.append(Dj.data * (self.biot * g.cell_volume)[Dj.row])
+            rows.append(Dj.col.astype(np.int64) * d + j)          # div v = Σ_j ∂_j v_j
+            cols.append(self.dofs.n + qcell[Dj.row].astype(np.int64))
+            vals.append(Dj.data * (self.biot * qw)[Dj.row])
         if self.n_ff:
             J = mech.jump_scalar.tocoo()
             r = (J.col.astype(np.int64)[:, None] * d + np.arange(d)).ravel()
