@@ -3,7 +3,7 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test clean
+.PHONY: demo test test-mpi clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,40 @@ demo: $(VENV)/.installed
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q -n 2
+
+# MPI/PETSc tests (docs/parallel.md): Debian's PETSc 3.18 (hypre, MUMPS) and Open MPI through
+# python3-petsc4py/python3-mpi4py, seen from a venv of this Python with numpy<2 (the Debian builds
+# need it) through a .pth file; apt-get runs only when they are missing (as root, as CI is).
+VENV_MPI := .venv-mpi
+BIN_MPI  := $(VENV_MPI)/bin
+PETSC_SITE = $(firstword $(wildcard /usr/lib/petscdir/petsc3.*/x86_64-linux-gnu-real/lib/python3/dist-packages))
+
+$(VENV_MPI)/.debian-petsc:
+	@if [ -z "$(PETSC_SITE)" ] || [ ! -d /usr/lib/python3/dist-packages/mpi4py ]; then \
+	  if [ "$$(id -u)" != 0 ]; then \
+	    echo "test-mpi: Debian's python3-petsc4py and python3-mpi4py are not installed; as root run" \
+	         "'apt-get install -y python3-petsc4py python3-mpi4py' (docs/parallel.md)" >&2; exit 1; fi; \
+	  echo "test-mpi: installing python3-petsc4py python3-mpi4py (Debian)"; \
+	  apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq python3-petsc4py python3-mpi4py \
+	    openmpi-bin >/dev/null; fi
+	$(PYTHON) -m venv $(VENV_MPI)
+	$(BIN_MPI)/python -m pip install --quiet --upgrade pip
+	@# petsc4py from PETSc's real-scalar site dir; mpi4py alone from Debian's (not its numpy or scipy)
+	mkdir -p $(VENV_MPI)/debian && ln -sfn /usr/lib/python3/dist-packages/mpi4py $(VENV_MPI)/debian/mpi4py
+	D=$$(ls -d /usr/lib/petscdir/petsc3.*/x86_64-linux-gnu-real/lib/python3/dist-packages | head -1) && \
+	SP=$$($(BIN_MPI)/python -c "import sysconfig; print(sysconfig.get_paths()['purelib'])") && \
+	printf '%s\n%s\n' "$$D" "$(abspath $(VENV_MPI))/debian" > "$$SP/debian-petsc.pth"
+	touch $@
+
+$(VENV_MPI)/.installed: pyproject.toml $(VENV_MPI)/.debian-petsc
+	$(BIN_MPI)/python -m pip install --quiet -e '.[test,mpi]' 'numpy<2'
+	$(BIN_MPI)/python -c "from petsc4py import PETSc; from mpi4py import MPI; import numpy; \
+	  print('test-mpi: PETSc', '.'.join(map(str, PETSc.Sys.getVersion())), '|', MPI.Get_library_version().split(',')[0], \
+	  '| numpy', numpy.__version__)"
+	touch $@
+
+test-mpi: $(VENV_MPI)/.installed
+	$(BIN_MPI)/python -m pytest -q tests/test_petsc_solvers.py tests/test_petsc_mpi.py
 
 clean:
 	rm -rf $(VENV) results build src/*.egg-info

@@ -21,9 +21,9 @@ from pathlib import Path
 
 import numpy as np
 
-from polypore.cases.casefile import load_case
-from polypore.cases.run import solve_static, unknowns
 from polypore.models.fracture_geometry import arc_length
+from polypore.runs.static import solve_static, unknowns
+from polypore.setup.casefile import load_case
 
 VARIANTS = {
     # name: overrides

@@ -26,12 +26,12 @@ from pathlib import Path
 
 import numpy as np
 
-from polypore.cases.casefile import load_case
-from polypore.cases.convergence import fit_rate
-from polypore.cases.meshing import build_fractured_mesh
-from polypore.cases.poro_run import poro_setup
-from polypore.cases.schedule import march
 from polypore.models.fracture_geometry import arc_length
+from polypore.runs.convergence import fit_rate
+from polypore.runs.march import march
+from polypore.setup.casefile import load_case
+from polypore.setup.meshing import build_fractured_mesh
+from polypore.setup.poromechanics import poro_setup
 
 FRACTURES = ("F1", "F2", "F3")
 

@@ -14,11 +14,11 @@ import json
 import resource
 import time
 
-from polypore.cases.casefile import load_case
 from polypore.cases.exact import piecewise_errors
-from polypore.cases.mechanics_setup import mechanics_setup
-from polypore.cases.meshing import build_fractured_mesh
 from polypore.models.mechanics import ContactMechanics
+from polypore.setup.casefile import load_case
+from polypore.setup.mechanics import mechanics_setup
+from polypore.setup.meshing import build_fractured_mesh
 from polypore.solvers.linear import LinearSolver
 
 

@@ -15,8 +15,8 @@ import json
 import time
 from pathlib import Path
 
-from polypore.cases.casefile import load_case
-from polypore.cases.convergence import format_table, run_convergence
+from polypore.runs.convergence import format_table, run_convergence
+from polypore.setup.casefile import load_case
 
 STUDIES = {
     # name: (case, overrides, levels)

@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from polypore.cases.casefile import load_case
+from polypore.setup.casefile import load_case
 from polypore.solvers.linear import have_pardiso
 
 RADIUS = 1.0          # a (m) in both built-in cases

@@ -127,9 +127,9 @@ def test_energy_identity_and_mass_with_stabilisation_on_fractured_triangles():
 
 def _c4(*overrides):
     """The coupled model of the dfm-2d case (C4, six fractures) on a coarse triangle mesh."""
-    from polypore.cases.casefile import load_case
-    from polypore.cases.meshing import build_fractured_mesh
-    from polypore.cases.poro_run import poro_setup
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import build_fractured_mesh
+    from polypore.setup.poromechanics import poro_setup
 
     case = load_case("dfm-2d", list(overrides))
     return poro_setup(case, build_fractured_mesh(case))[:2]

@@ -4,9 +4,9 @@ accuracy per unknown of tip-graded meshes against uniform ones."""
 import numpy as np
 import pytest
 
-from polypore.cases.casefile import load_case
 from polypore.cases.reference import load_reference
-from polypore.cases.run import solve_static, unknowns
+from polypore.runs.static import solve_static, unknowns
+from polypore.setup.casefile import load_case
 
 pytest.importorskip("gmsh")
 

@@ -7,9 +7,9 @@ import json
 import numpy as np
 import pytest
 
-from polypore.cases.casefile import load_case
 from polypore.cases.flow_exact import DarcyManufactured
-from polypore.cases.flow_run import flow_convergence_point
+from polypore.runs.flow import flow_convergence_point
+from polypore.setup.casefile import load_case
 
 pytest.importorskip("gmsh")  # darcy-dfm-2d meshes with gmsh
 
@@ -108,8 +108,8 @@ def test_manufactured_3d_convergence_point():
 
 def test_exact_data_follow_the_case():
     """κ, Λ and C of the manufactured solution are taken from the case's data."""
-    from polypore.cases.flow_setup import flow_setup
-    from polypore.cases.meshing import build_fractured_mesh
+    from polypore.setup.flow import flow_setup
+    from polypore.setup.meshing import build_fractured_mesh
 
     case = load_case("darcy-manufactured-2d", ["flow.viscosity=2.0", "flow.normal_permeability=0.1"])
     setup = flow_setup(case, build_fractured_mesh(case))

@@ -6,12 +6,12 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from polypore.cases.casefile import load_case
-from polypore.cases.meshing import build_fractured_mesh
 from polypore.core.errors import InputError, MeshError
 from polypore.mesh import FracturedMesh, FractureSpec
 from polypore.mesh.fractures import BOUNDARY, INTERIOR, INTERSECTION, KINK, TIP, validate_spec
 from polypore.mesh.generators.simplicial import simplicial_mesh
+from polypore.setup.casefile import load_case
+from polypore.setup.meshing import build_fractured_mesh
 
 gmsh = pytest.importorskip("gmsh")
 

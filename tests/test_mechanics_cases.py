@@ -6,9 +6,9 @@ import json
 import numpy as np
 import pytest
 
-from polypore.cases.casefile import load_case
-from polypore.cases.convergence import fit_rate, refined
-from polypore.cases.run import solve_static
+from polypore.runs.convergence import fit_rate, refined
+from polypore.runs.static import solve_static
+from polypore.setup.casefile import load_case
 
 
 def test_c1_cartesian_converges_first_order():

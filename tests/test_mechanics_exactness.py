@@ -176,8 +176,8 @@ def test_interpolate_bubble_captures_the_face_mean_of_a_quadratic():
 def test_block_amg_solver_matches_the_direct_solution():
     """GMRES + AMG on the condensed displacement block gives the direct solver's Newton solution."""
     pytest.importorskip("pyamg")
-    from polypore.cases.casefile import load_case
-    from polypore.cases.run import solve_static
+    from polypore.setup.casefile import load_case
+    from polypore.runs.static import solve_static
 
     ref = solve_static(load_case("coulomb-3d", ["mesh.size=0.4", "solver.linear=superlu"]))
     blk = solve_static(load_case("coulomb-3d", ["mesh.size=0.4", "solver.linear=block-amg"]))

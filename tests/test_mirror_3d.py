@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from polypore.cases.casefile import load_case
-from polypore.cases.meshing import build_fractured_mesh
 from polypore.core.errors import InputError
 from polypore.mesh import FracturedMesh, FractureSpec
 from polypore.mesh.fractures import validate_spec
 from polypore.mesh.generators.mirror import mirror_regions
 from polypore.mesh.generators.mirror3d import BAND
 from polypore.mesh.generators.simplicial import simplicial_mesh
+from polypore.setup.casefile import load_case
+from polypore.setup.meshing import build_fractured_mesh
 
 pytest.importorskip("gmsh")
 
@@ -86,7 +86,7 @@ def test_cube_fault_prism_is_mirrored(tip_size):
 def test_two_fractures_and_a_penny_polygon():
     """Two prisms (a hexagon with an oblique normal and a triangle) in one box, and an interface
     away from both: each prism mirrored, the mesh conforming."""
-    from polypore.cases.meshing import regular_polygon
+    from polypore.setup.meshing import regular_polygon
 
     hexagon = FractureSpec("hex", regular_polygon(np.array([-0.8, 0.2, 0.0]), 0.5, np.array([0.34, 0.2, 0.92]), 6))
     tri = FractureSpec("tri", np.array([[0.5, -0.6, -0.5], [1.3, -0.6, -0.4], [0.9, 0.2, -0.45]]))
@@ -171,7 +171,7 @@ def test_mirror_removes_the_lambda_n_scatter_of_a_sliding_penny_crack(tmp_path):
     tan 30° < cot ψ: it slides everywhere with the uniform λ_n = σ sin²ψ. On a general mesh
     the crack-edge error scatters λ_n (tens of %) and opens faces near the rim; mirrored about
     the crack plane with two-sided bubbles, λ_n is within a few % everywhere and no face opens."""
-    from polypore.cases.run import solve_static
+    from polypore.runs.static import solve_static
     from polypore.models.contact import OPEN
 
     path = tmp_path / "penny.toml"

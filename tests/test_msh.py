@@ -261,8 +261,8 @@ def test_file_mesh_arc_length_and_static_run(tmp_path, cli):
     and a static run writes the profiles along it (this used to crash in the plots)."""
     import csv
 
-    from polypore.cases.casefile import load_case
-    from polypore.cases.meshing import build_fractured_mesh
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import build_fractured_mesh
     from polypore.models.fracture_geometry import arc_length
 
     case = _case(tmp_path, "frac")

@@ -6,12 +6,12 @@ import json
 import numpy as np
 import pytest
 
-from polypore.cases.casefile import load_case
 from polypore.cases.penny_exact import OPEN, SLIP, STICK, PennyCrack, penny_crack
-from polypore.cases.run import solve_static
 from polypore.cli import main
 from polypore.core.errors import InputError
 from polypore.mesh import FractureSpec
+from polypore.runs.static import solve_static
+from polypore.setup.casefile import load_case
 
 E, NU, A = 25e9, 0.25, 1.3
 F30 = np.tan(np.pi / 6)

@@ -81,9 +81,9 @@ def test_block_amg_coupled_solver_matches_the_direct_solver():
     import numpy as np
 
     pytest.importorskip("pyamg")
-    from polypore.cases.casefile import load_case
-    from polypore.cases.meshing import build_fractured_mesh
-    from polypore.cases.poro_run import poro_setup
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import build_fractured_mesh
+    from polypore.setup.poromechanics import poro_setup
 
     states, counts = [], []
     for lin in ("superlu", "block-amg"):
@@ -112,9 +112,9 @@ def test_contact_condensation_is_symmetric_positive_definite_with_slipping_faces
     import numpy as np
     import scipy.sparse as sp
 
-    from polypore.cases.casefile import load_case
-    from polypore.cases.meshing import build_fractured_mesh
-    from polypore.cases.poro_run import poro_setup
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import build_fractured_mesh
+    from polypore.setup.poromechanics import poro_setup
 
     case = load_case("dfm-3d", ["mesh.size=0.25"])
     model, fs, _ = poro_setup(case, build_fractured_mesh(case))

@@ -3,9 +3,10 @@
 import numpy as np
 import pytest
 
-from polypore.cases.casefile import Section
-from polypore.cases.schedule import TimeSchedule, march, parse_schedule
 from polypore.core.errors import InputError, RunError
+from polypore.runs.march import march
+from polypore.setup.casefile import CaseFile
+from polypore.setup.schedule import TimeSchedule, parse_schedule
 
 
 def test_times_hit_output_times_and_end():
@@ -22,8 +23,10 @@ def test_times_hit_output_times_and_end():
     ({"end": 10.0, "step": 1.0, "typo": 1}, "time.typo", "unknown key"),
 ])
 def test_bad_schedules(table, field, msg):
+    case = CaseFile("t", None, {"model": "flow", "mesh": {"generator": "cartesian", "lower": [0, 0], "upper": [1, 1],
+                                                          "cells": [2, 2]}, "time": table})
     with pytest.raises(InputError) as exc:
-        parse_schedule(Section({"time": table}, ""))
+        parse_schedule(case.spec)
     assert exc.value.field == field and msg in str(exc.value)
 
 

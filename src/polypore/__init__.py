@@ -2,7 +2,10 @@
 
 Layers (a lower layer never imports a higher one; ``tests/test_layers.py`` checks it)::
 
-    core -> mesh -> discretisation -> assembly -> solvers -> models -> io -> cases -> cli
+    core -> mesh -> discretisation -> assembly -> solvers -> models -> io -> cases -> setup -> runs -> cli
+
+``cases`` holds the built-in case files and their exact solutions, ``setup`` turns a case file
+into model objects, ``runs`` holds the run drivers.
 """
 
 __version__ = "0.1.0"

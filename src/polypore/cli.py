@@ -1,15 +1,17 @@
-"""The ``polypore`` command (interface.md): ``cases``, ``mesh``, ``run`` and ``convergence``.
+"""The ``polypore`` command (interface.md): ``cases``, ``mesh``, ``run``, ``convergence`` and ``schema``.
 
-Exit status: 0 success, 1 a run failed, 2 bad input (the message names the field), 130 and
-143 interrupted by SIGINT and SIGTERM. Output folders follow one rule
-(:func:`polypore.io.atomic.run_directory`): a finished command leaves a complete result,
-anything else only ``failed.json`` with the reason.
+Exit status: 0 success, 1 a run failed, 2 bad input (the message names the field; also a case
+whose estimated cells, time steps or memory exceed the machine or sane bounds, unless
+``--no-limits``: :mod:`polypore.setup.limits`), 130 and 143 interrupted by SIGINT and SIGTERM.
+Output folders follow one rule (:func:`polypore.io.atomic.run_directory`): a finished command
+leaves a complete result, anything else only ``failed.json`` with the reason.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import math
 import signal
 import sys
 import time
@@ -93,8 +95,17 @@ def _output(args, default_name: str):
             raise KeyboardInterrupt if sig == signal.SIGINT else Terminated(sig)
 
 
+def _check_limits(args, case, **kw) -> None:
+    """Refuse, before any work, a case beyond the machine or sane bounds (unless --no-limits)."""
+    if args.no_limits:
+        return
+    from .setup.limits import check_limits
+
+    check_limits(case.spec, **kw)
+
+
 def cmd_cases(args) -> int:
-    from .cases.registry import describe_cases
+    from .setup.registry import describe_cases
 
     rows = describe_cases()
     width = max(len(n) for n, _ in rows)
@@ -104,11 +115,12 @@ def cmd_cases(args) -> int:
 
 
 def cmd_mesh(args) -> int:
-    from .cases.casefile import load_case
-    from .cases.meshing import build_fractured_mesh
     from .io.mesh_output import write_mesh_outputs
+    from .setup.casefile import load_case
+    from .setup.meshing import build_fractured_mesh
 
     case = load_case(args.case, args.set or [])
+    _check_limits(args, case, max_steps=math.inf)   # the mesh only: no time loop
     with _output(args, case.name) as (out, stage):
         t0 = time.perf_counter()
         fm = build_fractured_mesh(case)
@@ -119,10 +131,11 @@ def cmd_mesh(args) -> int:
 
 
 def cmd_run(args) -> int:
-    from .cases.casefile import load_case
-    from .cases.run import run_case
+    from .runs.dispatch import run_case
+    from .setup.casefile import load_case
 
     case = load_case(args.case, args.set or [])
+    _check_limits(args, case)
     with _output(args, case.name) as (out, stage):
         summary = run_case(case, stage)
     steps = summary["steps"]
@@ -145,14 +158,39 @@ def cmd_run(args) -> int:
 
 
 def cmd_convergence(args) -> int:
-    from .cases.casefile import load_case
-    from .cases.convergence import format_table, run_convergence
+    from .runs.convergence import format_table, run_convergence
+    from .setup.casefile import load_case
 
     case = load_case(args.case, args.set or [])
+    if args.levels < 2:
+        raise InputError("--levels", f"need at least 2 levels to fit a rate, got {args.levels}")
+    _check_limits(args, case, levels=args.levels)
     with _output(args, f"{case.name}-convergence") as (out, stage):
         result = run_convergence(case, args.levels, stage)
     print(format_table(result))
     print(f"wrote {out}/: convergence.csv, convergence.json, convergence.png")
+    return 0
+
+
+def cmd_schema(args) -> int:
+    import json
+
+    from .setup.schema import json_schema
+
+    text = json.dumps(json_schema(), indent=2, ensure_ascii=False) + "\n"
+    if args.out is None:
+        sys.stdout.write(text)
+        return 0
+    from .io.atomic import atomic_write_text
+
+    out = Path(args.out)
+    if out.is_dir():
+        raise InputError("--out", f"{str(out)!r} is a folder; give the path of the JSON file to write")
+    try:
+        atomic_write_text(out, text)
+    except OSError as exc:
+        raise InputError("--out", f"cannot write {str(out)!r}: {exc.strerror or exc}") from None
+    print(f"wrote {out}")
     return 0
 
 
@@ -185,6 +223,8 @@ def _case_arguments(p, default_out: str) -> None:
     p.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field, e.g. mesh.size=0.1")
     p.add_argument("--force", action="store_true", help="replace a previous polypore result in the output "
                    "directory (a folder of other files is refused)")
+    p.add_argument("--no-limits", action="store_true", help="run even when the estimated cells, time steps or "
+                   "memory exceed the machine or sane bounds")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -205,6 +245,9 @@ def build_parser() -> argparse.ArgumentParser:
     _case_arguments(c, "results/<case>-convergence/")
     c.add_argument("--levels", type=int, default=3, help="number of meshes (each halves the mesh size)")
     c.set_defaults(func=cmd_convergence)
+    s = sub.add_parser("schema", help="print the JSON Schema of case files (for TOML editors)")
+    s.add_argument("--out", metavar="FILE", help="write it to FILE instead of printing it")
+    s.set_defaults(func=cmd_schema)
     return p
 
 

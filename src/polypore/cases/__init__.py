@@ -1,1 +1,2 @@
-"""Built-in cases: case files (TOML) shipped with the package, and the layer that turns them into runs."""
+"""Built-in cases: the case files shipped with the package (``data/*.toml``) and their exact,
+analytic or reference solutions (``exact``, ``flow_exact``, ``penny_exact``, ``reference``)."""

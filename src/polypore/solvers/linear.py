@@ -8,6 +8,11 @@ Backends
              modes) preconditioning CG (symmetric) or GMRES (extra ``amg``).
 ``block-amg`` for contact Newton systems: GMRES preconditioned by AMG on the condensed
              displacement block (:mod:`.block_contact`); the model builds it.
+``petsc``    PETSc through petsc4py (extra ``mpi`` + Debian's petsc4py, docs/parallel.md): CG
+             (symmetric) or GMRES with GAMG or BoomerAMG, tuned by PETSc options
+             (``petsc_options``); on N ranks each rank passes its rows (:mod:`.petsc`).
+``block-petsc`` the block preconditioners of ``block-amg`` with PETSc's PCFIELDSPLIT
+             (:mod:`.petsc_fieldsplit`); the model builds it.
 ``auto``     pardiso if installed, else superlu.
 """
 
@@ -25,7 +30,7 @@ from ..core.errors import InputError, RunError
 
 log = logging.getLogger("polypore")
 
-BACKENDS = ("auto", "superlu", "pardiso", "amg", "block-amg")
+BACKENDS = ("auto", "superlu", "pardiso", "amg", "block-amg", "petsc", "block-petsc")
 
 
 def have_pardiso() -> bool:
@@ -58,6 +63,8 @@ class LinearSolver:
         Relative residual tolerance of iterative backends.
     near_nullspace : (n, k) array or None
         Near-nullspace vectors for AMG (rigid-body modes for elasticity).
+    petsc_options : mapping or None
+        PETSc options (``[solver.petsc]``: ``{"pc_type": "hypre", ...}``) of the PETSc backends.
     """
 
     backend: str = "auto"
@@ -66,6 +73,7 @@ class LinearSolver:
     maxiter: int = 500
     near_nullspace: np.ndarray | None = None
     stats: SolveStats = field(default_factory=SolveStats)
+    petsc_options: dict | None = None
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
@@ -79,6 +87,10 @@ class LinearSolver:
                 import pyamg  # noqa: F401
             except ImportError:
                 raise InputError("solver.linear", "'amg' needs the optional extra: pip install 'polypore[amg]'") from None
+        if self.backend in ("petsc", "block-petsc"):
+            from .petsc import petsc
+
+            petsc()                 # InputError with the install route when petsc4py is missing
 
     def solve(self, A, b) -> np.ndarray:
         t0 = time.perf_counter()
@@ -92,8 +104,11 @@ class LinearSolver:
             x = pypardiso.spsolve(A, b)
         elif self.backend == "amg":
             x = self._amg(A, b)
+        elif self.backend == "petsc":
+            x = self._petsc(A, b)
         else:
-            raise InputError("solver.linear", "'block-amg' applies to contact mechanics only (the model sets it up)")
+            raise InputError("solver.linear", f"{self.backend!r} applies to contact mechanics only (the model sets "
+                             "it up)")
         if not np.all(np.isfinite(x)):
             raise RunError("the linear system is singular (the solution has NaN/Inf): check that every part of the "
                            "body is held (Dirichlet conditions) and that the contact data are consistent")
@@ -109,6 +124,17 @@ class LinearSolver:
         except RuntimeError as exc:
             raise RunError(f"the linear system is singular ({exc}): check the Dirichlet conditions and the data") from None
         return lu.solve(b)
+
+    def _petsc(self, A, b):
+        if getattr(self, "_petsc_solver", None) is None:
+            from .petsc import PetscLinearSolver
+
+            self._petsc_solver = PetscLinearSolver(symmetric=self.symmetric, rtol=self.rtol, maxiter=self.maxiter,
+                                                   near_nullspace=self.near_nullspace, options=self.petsc_options)
+        k = len(self._petsc_solver.iterations)
+        x = self._petsc_solver.solve(A, b)
+        self.stats.iterations.extend(self._petsc_solver.iterations[k:])
+        return x
 
     def _amg(self, A, b):
         import pyamg

@@ -62,7 +62,7 @@ class NewtonOptions:
     # iterations (active sets cycling): the caller cuts the time step at once instead of
     # spending the remaining iterations (C5: 50 iterations ≈ 5 min at 46k cells, after which
     # two half steps converge in ~9 iterations each). 0 (the default, static problems) disables
-    # the test; the time loops of cases/ set it.
+    # the test; the time loops of runs/ set it.
     stall_iterations: int = 0
     # Attainable accuracy: with the active set fixed and an increment below
     # 10⁻² increment_tol (nothing moves), a residual up to `floor_factor` × tol is the round-off

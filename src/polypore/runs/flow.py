@@ -20,29 +20,23 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..cases.flow_exact import flow_errors, slot_values
 from ..io.atomic import atomic_write_text
 from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
 from ..io.vtu import write_bulk_vtu, write_fracture_vtu, write_pvd
 from ..mesh.fractures import BOUNDARY
 from ..models.fracture_geometry import arc_length
-from .casefile import CaseFile
-from .flow_exact import flow_errors
-from .flow_setup import FlowSetup, flow_setup
-from .meshing import build_fractured_mesh
+from ..setup.casefile import CaseFile
+from ..setup.flow import FlowSetup, flow_setup
+from ..setup.meshing import build_fractured_mesh
+from .common import peak_memory_mb
 
 log = logging.getLogger("polypore")
 
 MECHANICS_COLUMNS = ("jump_n", "jump_t", "jump_x", "jump_y", "jump_z", "lambda_n", "lambda_t", "state")
 
 
-def peak_memory_mb() -> float:
-    """Peak resident memory of this process (MB)."""
-    import resource
-
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
-
-
-def unknowns(model) -> int:
+def flow_unknowns(model) -> int:
     """All pressure unknowns of the scheme: cells, faces, traces, fracture faces, fracture edges."""
     return int(model.assembler.dofs.n + model.mesh.n_cells)
 
@@ -113,8 +107,6 @@ def _darcy_velocity(model, sol, slot) -> np.ndarray:
 
 
 def _write_state(stage: Path, k: int, model, setup: FlowSetup, sol, pvd: list):
-    from .flow_exact import slot_values
-
     mesh, net = model.mesh, model.network
     g = mesh.geometry
     cell = {"pressure": sol.cell, "darcy_velocity": _darcy_velocity(model, sol, slot_values(model, sol))}
@@ -211,7 +203,7 @@ def run_flow(case: CaseFile, out: Path) -> dict:
             bal = balances(model, sol)
             steps.append({"time": sol.time, "seconds": time.perf_counter() - t0,
                           "mass_balance": bal["mass_balance"]["residual"], "timings": sol.timings})
-            log.info("steady solve: %d unknowns in %.2f s, mass balance %.2e m³/s", unknowns(model),
+            log.info("steady solve: %d unknowns in %.2f s, mass balance %.2e m³/s", flow_unknowns(model),
                      steps[-1]["seconds"], bal["mass_balance"]["residual"])
             _write_state(stage, 0, model, setup, sol, pvd)
             blocks.append(_csv_block(0, model, sol, s))
@@ -240,7 +232,7 @@ def run_flow(case: CaseFile, out: Path) -> dict:
         summary = {
             "case": case.name, "version": __version__, "model": "flow",
             "mesh": {"dim": mesh.dim, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
-                     "fracture_faces": net.n_faces, "unknowns": unknowns(model),
+                     "fracture_faces": net.n_faces, "unknowns": flow_unknowns(model),
                      "global_unknowns": int(model.assembler.dofs.n),
                      "h_max": float(mesh.geometry.cell_diameter.max())},
             "steady": setup.steady,
@@ -261,7 +253,7 @@ def flow_convergence_point(case: CaseFile) -> dict:
     fm, setup, model, _ = _prepare(case)
     if setup.exact is None:
         return {"h": float(fm.mesh.geometry.cell_diameter.max()), "cells": fm.mesh.n_cells,
-                "unknowns": unknowns(model), "errors": {}}
+                "unknowns": flow_unknowns(model), "errors": {}}
     sol = model.solve_steady()
-    return {"h": float(fm.mesh.geometry.cell_diameter.max()), "cells": fm.mesh.n_cells, "unknowns": unknowns(model),
-            "errors": flow_errors(model, sol, setup.exact, setup.on_gamma1)}
+    return {"h": float(fm.mesh.geometry.cell_diameter.max()), "cells": fm.mesh.n_cells,
+            "unknowns": flow_unknowns(model), "errors": flow_errors(model, sol, setup.exact, setup.on_gamma1)}

@@ -1,8 +1,7 @@
 """``polypore run`` for poromechanics cases (scheme.md §6): the time loop, outputs, energy audit.
 
-The case has the mechanics tables of :mod:`.mechanics_setup` (``[material]``, ``[mechanics]``,
-``[contact]``), the flow tables of :mod:`.flow_setup` (``[flow]``) and ``[time]``
-(:mod:`.schedule`); ``[mechanics] biot`` is the Biot coefficient b of both equations.
+The case is set up by :func:`polypore.setup.poromechanics.poro_setup` (the mechanics and flow
+tables, ``[time]``, ``[initial_state]``); ``[monitor]`` names points whose overpressure is recorded.
 Files: case.toml, summary.json (steps with Newton counts, states and energy terms),
 fractures.csv, bulk/fractures VTU series + solution.pvd and, in 2D, overpressure maps,
 contact states along the fractures and mean aperture / fracture pressure against time.
@@ -10,8 +9,6 @@ contact states along the fractures and mean aperture / fracture pressure against
 
 from __future__ import annotations
 
-import copy
-import dataclasses
 import logging
 import time
 from pathlib import Path
@@ -27,87 +24,14 @@ from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu, write
 from ..models.contact import SLIP, STATE_NAMES
 from ..models.energy import check_energy
 from ..models.fracture_geometry import arc_length
-from ..models.poromechanics import STABILISATION, Poromechanics
-from .casefile import CaseFile, unknown_key
-from .flow_setup import flow_setup
-from .insitu import reference_state
-from .mechanics_setup import mechanics_setup
-from .meshing import build_fractured_mesh
-from .run import peak_memory_mb
-from .schedule import march
+from ..models.mechanics import MechanicsState
+from ..setup.casefile import CaseFile
+from ..setup.meshing import build_fractured_mesh
+from ..setup.poromechanics import monitor_points, poro_setup
+from .common import peak_memory_mb
+from .march import march
 
 log = logging.getLogger("polypore")
-
-MECH_SOLVER_KEYS = ("linear", "tolerance", "increment_tolerance", "max_iterations")
-FLOW_SOLVER_KEYS = ("linear", "linear_tolerance")
-
-
-def _sub_case(case: CaseFile, drop: tuple, solver_keys: tuple) -> CaseFile:
-    """The case without the tables of the other half (each half rejects keys it does not know)."""
-    data = copy.deepcopy(case.data)
-    for k in drop:
-        data.pop(k, None)
-    if "solver" in data:
-        data["solver"] = {k: v for k, v in data["solver"].items() if k in solver_keys}
-    return CaseFile(case.name, case.source, data)
-
-
-def poro_setup(case: CaseFile, fm):
-    """(Poromechanics model, flow setup, mechanics setup) for a case, validated."""
-    unknown = set(case.data.get("solver", {})) - set(MECH_SOLVER_KEYS) - set(FLOW_SOLVER_KEYS)
-    if unknown:
-        k = sorted(unknown)[0]
-        raise InputError(f"solver.{k}", unknown_key(k, set(MECH_SOLVER_KEYS) | set(FLOW_SOLVER_KEYS)))
-    if "flow" not in case.data:
-        raise InputError("flow", "a poromechanics case needs flow data: a [flow] table (permeability, viscosity, "
-                         "biot_modulus, aperture, normal_permeability, boundary conditions)")
-    if "time" not in case.data:
-        raise InputError("time", "a poromechanics case is transient: give [time] with end and step (s)")
-    mech_case = _sub_case(case, ("flow", "time", "model", "initial_state", "monitor"), MECH_SOLVER_KEYS)
-    flow_case = _sub_case(case, ("mechanics", "material", "materials", "contact", "model", "initial_state",
-                                 "monitor"), FLOW_SOLVER_KEYS)
-    ms = mechanics_setup(mech_case, fm)
-    fs = flow_setup(flow_case, fm)
-    if fs.initial_pressure is None:
-        raise InputError("flow.initial_pressure", "is required for a poromechanics run (Pa)")
-    b = float(case.data.get("mechanics", {}).get("biot", 1.0))
-    flow_data = dataclasses.replace(fs.data, biot_coefficient=b)
-    ref = reference_state(case, fm)
-    model = Poromechanics(fm, ms.data, flow_data, fs.boundary, fracture_boundary=fs.fracture_boundary,
-                          cell_source=fs.cell_source, fracture_source=fs.fracture_source, alpha=fs.alpha,
-                          fracture_alpha=fs.fracture_alpha, solver=ms.solver,
-                          newton=dataclasses.replace(ms.newton, label="poromechanics Newton", stall_iterations=12),
-                          initial_traction=None if ref is None else ref.traction(fm),
-                          dilatancy=fs.info.get("tan_psi", 0.0),
-                          pressure_stabilisation=STABILISATION if fs.info.get("pressure_stabilisation") is None
-                          else fs.info["pressure_stabilisation"])
-    model.reference = ref
-    return model, fs, ms
-
-
-def monitor_points(case: CaseFile, mesh) -> dict:
-    """``[monitor] points = {name = [x, y(, z)]}``: name -> the cell whose centroid is nearest."""
-    root = case.root()
-    if not root.has("monitor"):
-        return {}
-    sec = root.section("monitor")
-    pts = sec.raw("points", {})
-    if not isinstance(pts, dict):
-        raise InputError(sec.field("points"), "must be a table name = [x, y(, z)] (m)")
-    out = {}
-    c = mesh.geometry.cell_centroid
-    lo, hi = mesh.bounding_box
-    for name, x in pts.items():
-        f = sec.field(f"points.{name}")
-        try:
-            x = np.asarray(x, float).reshape(mesh.dim)
-        except (TypeError, ValueError):
-            raise InputError(f, f"must be {mesh.dim} coordinates (m), got {x!r}") from None
-        if np.any(x < lo - 1e-9 * np.abs(hi - lo)) or np.any(x > hi + 1e-9 * np.abs(hi - lo)):
-            raise InputError(f, f"lies outside the domain {lo.tolist()} – {hi.tolist()}")
-        out[name] = int(np.argmin(np.linalg.norm(c - x, axis=1)))
-    sec.done()
-    return out
 
 
 def run_poromechanics(case: CaseFile, out: Path) -> dict:
@@ -261,6 +185,4 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
 
 
 def _mstate(st):
-    from ..models.mechanics import MechanicsState
-
     return MechanicsState(st.u, st.lam, st.state, st.time)

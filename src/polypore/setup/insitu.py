@@ -1,6 +1,6 @@
 """The ``[initial_state]`` table (C6): a gravitational in-situ equilibrium the run starts from.
 
-Schema (SI units)::
+Keys (SI units; checked by :class:`polypore.setup.schema.case.InitialState`)::
 
     [initial_state]
     gravity = 9.81            # g (m/s²), acting along −x_d (the last coordinate is up)
@@ -68,22 +68,12 @@ class ReferenceState:
 
 
 def reference_state(case: CaseFile, fm) -> ReferenceState | None:
-    """The validated ``[initial_state]`` table, or None."""
-    root = case.root()
-    if not root.has("initial_state"):
+    """The ``[initial_state]`` table (checked by the schema) for the mesh ``fm``, or None."""
+    s = case.spec.initial_state
+    if s is None:
         return None
-    sec = root.section("initial_state")
-    g = sec.number("gravity", 9.81, nonneg=True)
-    rr = sec.number("rock_density", positive=True)
-    rw = sec.number("fluid_density", 1000.0, nonneg=True)
-    k = sec.raw("stress_ratio", None)
-    if isinstance(k, bool) or not isinstance(k, (int, float)) or not (0 < k < np.inf):
-        raise InputError(sec.field("stress_ratio"), f"must be a number in (0, ∞) (σ_h/σ_v), got {k!r}")
-    surface = sec.number("surface", 0.0)
-    ps = sec.number("surface_pressure", 0.0)
-    sec.done()
     top = float(fm.mesh.nodes[:, -1].max())
-    if top > surface + 1e-9 * max(1.0, abs(surface)):
-        raise InputError(sec.field("surface"), f"the domain reaches the elevation {top:g} m above the surface "
-                         f"{surface:g} m; the depth must be ≥ 0 everywhere")
-    return ReferenceState(float(g), float(rr), float(rw), float(k), float(surface), float(ps))
+    if top > s.surface + 1e-9 * max(1.0, abs(s.surface)):
+        raise InputError("initial_state.surface", f"the domain reaches the elevation {top:g} m above the surface "
+                         f"{s.surface:g} m; the depth must be ≥ 0 everywhere")
+    return ReferenceState(s.gravity, s.rock_density, s.fluid_density, s.stress_ratio, s.surface, s.surface_pressure)

@@ -8,7 +8,6 @@ contact-state map (PNG). Everything is staged and moved into DIR on success only
 from __future__ import annotations
 
 import logging
-import resource
 import time
 from pathlib import Path
 
@@ -22,19 +21,15 @@ from ..io.atomic import atomic_write_text
 from ..models.contact import STATE_NAMES
 from ..models.fracture_geometry import arc_length
 from ..models.mechanics import ContactMechanics
-from .casefile import CaseFile
-from .exact import PiecewiseSolution, SingleCrack, piecewise_errors
-from .mechanics_setup import mechanics_setup
-from .penny_exact import PennyCrack
-from .reference import ReferenceSlip
-from .meshing import build_fractured_mesh
+from ..cases.exact import PiecewiseSolution, SingleCrack, piecewise_errors
+from ..cases.penny_exact import PennyCrack
+from ..cases.reference import ReferenceSlip
+from ..setup.casefile import CaseFile
+from ..setup.mechanics import mechanics_setup
+from ..setup.meshing import build_fractured_mesh
+from .common import peak_memory_mb, unknowns
 
 log = logging.getLogger("polypore")
-
-
-def peak_memory_mb() -> float:
-    """Peak resident memory of this process (MB)."""
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def solve_static(case: CaseFile):
@@ -58,54 +53,6 @@ def solve_static(case: CaseFile):
         errors = setup.exact.errors(problem, st)
     timings = {"mesh": t1 - t0, "setup": t2 - t1, "solve": t3 - t2, **{f"solve_{k}": v for k, v in st.seconds.items()}}
     return problem, st, setup, errors, timings
-
-
-def unknowns(problem) -> int:
-    return int(problem.free.size + problem.n_ff * problem.dim)
-
-
-MODELS = ("mechanics", "flow", "poromechanics")
-
-
-def case_model(case: CaseFile) -> str:
-    """The physics a case asks for: its ``model`` key, else "flow" for a case with a [flow] table
-    and no mechanics, else "mechanics"."""
-    from ..core.errors import InputError
-
-    model = case.data.get("model")
-    if model is None:
-        has_mech = any(k in case.data for k in ("mechanics", "material", "materials", "contact"))
-        has_flow = "flow" in case.data
-        model = "poromechanics" if has_flow and has_mech else ("flow" if has_flow else "mechanics")
-    if model not in MODELS:
-        raise InputError("model", f"unknown model {model!r}; allowed: {', '.join(MODELS)}")
-    return model
-
-
-def run_case(case: CaseFile, out: Path) -> dict:
-    """``polypore run``: dispatch on the case's model; returns summary.json's content."""
-    model = case_model(case)
-    if model == "flow":
-        from .flow_run import run_flow
-
-        return run_flow(case, out)
-    if model == "poromechanics":
-        from .poro_run import run_poromechanics
-
-        return run_poromechanics(case, out)
-    return run_static(case, out)
-
-
-def convergence_point(case: CaseFile) -> dict:
-    """Solve a case with an exact solution once: h (max cell diameter, m), cells, unknowns,
-    iterations and the error measures (for ``polypore convergence``)."""
-    if case_model(case) == "flow":
-        from .flow_run import flow_convergence_point
-
-        return flow_convergence_point(case)
-    problem, st, setup, errors, _ = solve_static(case)
-    return {"h": float(problem.fm.mesh.geometry.cell_diameter.max()), "cells": problem.fm.mesh.n_cells,
-            "unknowns": unknowns(problem), "newton_iterations": st.newton_iterations, "errors": errors}
 
 
 def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:

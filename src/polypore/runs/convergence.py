@@ -13,8 +13,10 @@ from ..core.errors import InputError
 from ..io.atomic import atomic_write_text
 from ..io.plots import convergence_plot
 from ..io.results import staged_run_directory, write_json
-from .casefile import CaseFile
-from .run import convergence_point
+from ..setup.casefile import CaseFile, case_model
+from .common import unknowns
+from .flow import flow_convergence_point
+from .static import solve_static
 
 log = logging.getLogger("polypore")
 
@@ -33,6 +35,16 @@ def refined(case: CaseFile, level: int) -> CaseFile:
             if key in mesh:
                 mesh[key] = float(mesh[key]) / f
     return CaseFile(case.name, case.source, data)
+
+
+def convergence_point(case: CaseFile) -> dict:
+    """Solve a case with an exact solution once: h (max cell diameter, m), cells, unknowns,
+    iterations and the error measures."""
+    if case_model(case) == "flow":
+        return flow_convergence_point(case)
+    problem, st, setup, errors, _ = solve_static(case)
+    return {"h": float(problem.fm.mesh.geometry.cell_diameter.max()), "cells": problem.fm.mesh.n_cells,
+            "unknowns": unknowns(problem), "newton_iterations": st.newton_iterations, "errors": errors}
 
 
 def fit_rate(h, e) -> float:

@@ -1,0 +1,360 @@
+"""From a case's ``[flow]``, ``[time]``, ``[exact]`` and ``[solver]`` tables to a :class:`FlowModel`.
+
+The tables, their keys, ranges and defaults are in :mod:`polypore.setup.schema.flow`
+(``polypore schema`` prints them); an example (SI units)::
+
+    [flow]
+    permeability = 1e-15             # K_m (m²): number/expression, d×d matrix or a table by region
+    viscosity = 1e-3                 # η (Pa·s)
+    biot_modulus = 1e10              # M (Pa), "inf" (no matrix storage; the default) or by region
+    aperture = 1e-4                  # d_f (m) > 0: expression of x, y, z, t, D, L
+    initial_pressure = 1e5           # p⁰ (Pa) of a transient run
+
+    [[flow.boundary]]                # one block per boundary part; parts without one are no-flow
+    name = "xmin"
+    pressure = 1e5                   # or flux, rate, mass_rate
+
+    [time]                           # transient runs (implicit Euler, setup/schedule.py)
+    end = 2000.0
+    step = 20.0
+
+Here expressions are parsed and evaluated on the mesh, and what needs the mesh is checked:
+regions and boundary parts that exist, positive apertures and permeabilities on every face,
+a pressure condition where the pressure would otherwise be defined up to a constant.
+
+Variables in fracture expressions: ``D`` the distance (m) from the face centroid to the
+nearest tip of the same fracture (1e30 on a fracture without tips), ``L`` the fracture's
+length in 2D, the square root of its area in 3D (m).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..cases.flow_exact import DarcyManufactured, gamma1_mask
+from ..core.errors import InputError
+from ..core.expressions import parse
+from ..mesh import FracturedMesh
+from ..models.flow import FlowData, FlowModel, Flux, NO_FLOW, Pressure, permeability_tensor
+from ..models.fracture_geometry import tip_distance
+from ..solvers.linear import LinearSolver
+from .casefile import CaseFile
+from .schedule import TimeSchedule, parse_schedule
+from .schema.case import Solver
+
+FRACTURE_VARS = ("D", "L")
+
+
+@dataclass
+class FlowSetup:
+    """Everything a flow run needs, validated against the mesh."""
+
+    fm: FracturedMesh
+    data: FlowData
+    boundary: dict
+    fracture_boundary: dict
+    cell_source: object
+    fracture_source: object
+    solver: LinearSolver
+    schedule: TimeSchedule | None = None
+    initial_pressure: object = None
+    alpha: float | None = None
+    fracture_alpha: float | None = None
+    exact: DarcyManufactured | None = None
+    on_gamma1: np.ndarray | None = None
+    info: dict = field(default_factory=dict)
+
+    @property
+    def steady(self) -> bool:
+        return self.schedule is None
+
+    def model(self) -> FlowModel:
+        return FlowModel(self.fm, self.data, self.boundary, fracture_boundary=self.fracture_boundary,
+                         cell_source=self.cell_source, fracture_source=self.fracture_source, alpha=self.alpha,
+                         fracture_alpha=self.fracture_alpha, solver=self.solver)
+
+
+# -- helpers -------------------------------------------------------------------------------------
+def _point_fn(expr, extra: dict | None = None):
+    """f(x, y, z, t) from an Expression, with fixed per-entity extra variables (D, L)."""
+    extra = extra or {}
+
+    def fn(x, y, z, t=0.0):
+        return expr(x, y, z, t, **extra)
+
+    fn.text = expr.text
+    return fn
+
+
+def _cell_values(value, field: str, params, centroids) -> np.ndarray:
+    e = parse(value, field, params)
+    if "t" in e.names:
+        raise InputError(field, f"expression {e.text!r} may not depend on t here")
+    c = centroids
+    z = c[:, 2] if c.shape[1] > 2 else np.zeros(c.shape[0])
+    with np.errstate(all="ignore"):
+        out = np.broadcast_to(e(c[:, 0], c[:, 1], z, 0.0), (c.shape[0],)).astype(float)
+    if not np.all(np.isfinite(out)):
+        raise InputError(field, f"expression {e.text!r} is not finite at every cell centroid")
+    return out
+
+
+def _tensor(value, field: str, params, centroids, dim: int) -> np.ndarray:
+    """Permeability value -> (n, d, d): number/expression (isotropic) or a d×d matrix."""
+    n = centroids.shape[0]
+    if isinstance(value, list):
+        if not (len(value) == dim and all(isinstance(r, list) and len(r) == dim for r in value)):
+            raise InputError(field, f"expected a number, an expression or a {dim}×{dim} matrix (list of {dim} rows "
+                             f"of {dim} numbers), got {value!r}")
+        K = np.empty((n, dim, dim))
+        for i in range(dim):
+            for j in range(dim):
+                K[:, i, j] = _cell_values(value[i][j], f"{field}[{i}][{j}]", params, centroids)
+        return permeability_tensor(K, n, dim, field)
+    return permeability_tensor(_cell_values(value, field, params, centroids), n, dim, field)
+
+
+def _permeability(flow, mesh, params) -> np.ndarray:
+    d, nc = mesh.dim, mesh.n_cells
+    c = mesh.geometry.cell_centroid
+    K = np.full((nc, d, d), np.nan)
+    value = flow.permeability
+    if isinstance(value, dict):
+        for name, v in value.items():
+            f = f"flow.permeability.{name}"
+            sel = _region(mesh, name, f)
+            K[sel] = _tensor(v, f, params, c[sel], d)
+    elif value is not None:
+        K[:] = _tensor(value, "flow.permeability", params, c, d)
+    for r in flow.regions:
+        sel = _region(mesh, r.name, f"flow.regions.{r.name}.name")
+        K[sel] = _tensor(r.permeability, f"flow.regions.{r.name}.permeability", params, c[sel], d)
+    if np.isnan(K).any():
+        if value is None and not flow.regions:
+            raise InputError("flow.permeability", "is required: the matrix permeability K_m in m² (a number, a "
+                             f"{d}×{d} matrix or a table by region)")
+        missing = sorted({mesh.region_names[i] for i in np.unique(mesh.cell_region[np.isnan(K).any(axis=(1, 2))])})
+        raise InputError("flow.permeability", f"no permeability for region(s) {', '.join(missing)}")
+    return K
+
+
+def _region(mesh, name: str, field: str) -> np.ndarray:
+    """Cells of region ``name`` (a boolean mask); InputError naming ``field`` if the mesh has none."""
+    if name not in mesh.region_names:
+        raise InputError(field, f"unknown region {name!r}; the mesh has {', '.join(mesh.region_names)}")
+    return mesh.cell_region == mesh.region_names.index(name)
+
+
+def _by_region(value, field: str, mesh) -> np.ndarray | None:
+    """(n_cells,) values of a key given as a number or a table by region (checked by the schema),
+    None if absent."""
+    if value is None:
+        return None
+    if not isinstance(value, dict):
+        return np.full(mesh.n_cells, float(value))
+    out = np.full(mesh.n_cells, np.nan)
+    for name, v in value.items():
+        out[_region(mesh, name, f"{field}.{name}")] = v
+    if np.isnan(out).any():
+        missing = sorted({mesh.region_names[i] for i in np.unique(mesh.cell_region[np.isnan(out)])})
+        raise InputError(field, f"no value for region(s) {', '.join(missing)}")
+    return out
+
+
+def _storage(flow, mesh):
+    """M (Pa): a number, inf, a table by region, or from porosity φ and fluid compressibility
+    c_w as 1/M = φ c_w (incompressible grains, b = 1: the Choice of C6)."""
+    if flow.porosity is not None:
+        return 1.0 / (_by_region(flow.porosity, "flow.porosity", mesh) * flow.fluid_compressibility)
+    M = _by_region(flow.biot_modulus, "flow.biot_modulus", mesh)
+    if M is None:
+        return np.inf
+    return float(M[0]) if np.all(M == M[0]) else M
+
+
+def fracture_variables(fm: FracturedMesh) -> dict:
+    """Per-fracture-face D (distance to the nearest tip, 1e30 without tips) and L (m)."""
+    net = fm.network
+    D = tip_distance(fm)
+    D = np.where(np.isfinite(D), D, 1e30)
+    area = fm.mesh.geometry.face_area[net.faces]
+    meas = np.bincount(net.fracture, weights=area, minlength=len(net.names))
+    if fm.mesh.dim == 3:
+        meas = np.sqrt(meas)
+    return {"D": D, "L": meas[net.fracture]}
+
+
+# -- main entry ----------------------------------------------------------------------------------
+def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
+    """The flow tables of ``case`` as a flow model's data for the mesh ``fm`` (InputError naming the field)."""
+    spec = case.spec
+    mesh, net = fm.mesh, fm.network
+    d = mesh.dim
+    params = spec.parameters
+    sec = spec.flow
+    if sec is None:
+        raise InputError("flow", "is required for a flow case: give at least permeability, viscosity and a "
+                         "[[flow.boundary]] pressure condition")
+    K = _permeability(sec, mesh, params)
+    M = _storage(sec, mesh)
+    fvars = fracture_variables(fm)
+    xf = mesh.geometry.face_centroid[net.faces]
+
+    def fracture_expr(key, with_t=True, extra=()):
+        e = parse(getattr(sec, key), f"flow.{key}", params, extra=FRACTURE_VARS + tuple(extra))
+        if not with_t and "t" in e.names:
+            raise InputError(f"flow.{key}", f"expression {e.text!r} may not depend on t")
+        return e
+
+    ap = fracture_expr("aperture")
+    kfn = fracture_expr("normal_permeability", with_t=False)
+    # the schema checked steady against [time]; the aperture is checked at the start time
+    schedule = parse_schedule(spec)
+    steady = schedule is None
+    t0 = 0.0 if steady else schedule.start
+    cols = (xf[:, 0], xf[:, 1], xf[:, 2] if d == 3 else np.zeros(net.n_faces))
+    for e, key, unit in ((ap, "aperture", "m"), (kfn, "normal_permeability", "m²")):
+        vals = np.broadcast_to(e(*cols, t0, **fvars), (net.n_faces,))
+        bad = ~(vals > 0)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise InputError(f"flow.{key}", f"must be positive ({unit}) on every fracture face; {e.text!r} gives "
+                             f"{vals[i]:g} on fracture {net.names[net.fracture[i]]} at {np.round(xf[i], 6).tolist()} "
+                             f"(t = {t0:g} s)")
+    cond_law = None
+    if sec.fracture_conductivity is not None:
+        ce = fracture_expr("fracture_conductivity", with_t=False, extra=("d",))
+
+        def cond_law(a, _e=ce):
+            return np.broadcast_to(_e(*cols, 0.0, d=a, **fvars), a.shape)
+
+        probe = cond_law(np.asarray(np.broadcast_to(ap(*cols, t0, **fvars), (net.n_faces,)), float))
+        if not np.all(probe >= 0):
+            raise InputError("flow.fracture_conductivity", f"must give values ≥ 0 (m³); {ce.text!r} gives "
+                             f"{float(np.min(probe)):g}")
+    exact_name = None if spec.exact is None else spec.exact.solution
+    if exact_name is not None and int(exact_name[-2]) != d:
+        raise InputError("exact.solution", f"{exact_name!r} is a {exact_name[-2]}D solution but the mesh is {d}D")
+
+    def source(key, extra):
+        v = getattr(sec, key)
+        if v == "exact":
+            return "exact"   # the schema checked that the case has an [exact] solution
+        return _point_fn(parse(v, f"flow.{key}", params, extra=extra), None if not extra else fvars)
+
+    cell_source = source("source", ())
+    fracture_source = source("fracture_source", FRACTURE_VARS)
+    initial = None
+    if not steady:
+        if sec.initial_pressure is None:
+            raise InputError("flow.initial_pressure", "is required for a transient run (Pa, expression of x, y, z)")
+        initial = _point_fn(parse(sec.initial_pressure, "flow.initial_pressure", params))
+    boundary = _boundary(sec, mesh, params)
+    fracture_boundary = _fracture_boundary(sec, mesh, params)
+    has_pressure = any(v == "exact" or isinstance(v, Pressure) for v in boundary.values()) or any(
+        isinstance(v, Pressure) for v in fracture_boundary.values())
+    no_storage = not np.any(np.isfinite(M)) and sec.fracture_compressibility == 0
+    if not has_pressure and (steady or no_storage):
+        raise InputError("flow.boundary", "no boundary part has a pressure condition, so the pressure is only "
+                         "defined up to a constant" + (" (a steady problem)" if steady else " (no storage: "
+                                                      "biot_modulus is inf)") + "; give `pressure` on at least "
+                         "one [[flow.boundary]] part (parts without a block are no-flow)")
+    s = spec.solver or Solver()
+    data = FlowData(permeability=K, viscosity=sec.viscosity, biot_modulus=M,
+                    aperture=_point_fn(ap, fvars), normal_permeability=np.broadcast_to(
+                        kfn(*cols, 0.0, **fvars), (net.n_faces,)).astype(float),
+                    fracture_compressibility=sec.fracture_compressibility,
+                    **({"conductivity_law": cond_law} if cond_law is not None else {}))
+    exact = on1 = None
+    if exact_name is not None:
+        exact, on1 = _exact(exact_name, fm, data, K, ap, cols, fvars)
+        pexact = Pressure(exact.p)
+        boundary = {k: (pexact if v == "exact" else v) for k, v in boundary.items()}
+        if cell_source == "exact":
+            cell_source = exact.h_m
+        if fracture_source == "exact":
+            fracture_source = exact.h_f(xf, on1)
+    return FlowSetup(fm, data, boundary, fracture_boundary, cell_source, fracture_source,
+                     LinearSolver(s.linear, symmetric=True, rtol=s.linear_tolerance, **s.backend_options()), schedule,
+                     initial, sec.alpha,
+                     sec.fracture_alpha, exact, on1,
+                     {"fracture_variables": fvars, "tan_psi": float(np.tan(np.radians(sec.dilatancy_angle))),
+                      "pressure_stabilisation": sec.pressure_stabilisation})
+
+
+def _boundary_part(mesh, name: str, field: str) -> None:
+    if name not in mesh.boundary:
+        raise InputError(field, f"unknown boundary {name!r}; this mesh has {', '.join(sorted(mesh.boundary))}")
+
+
+def _boundary(sec, mesh, params) -> dict:
+    """Boundary part -> Pressure, Flux or "exact" from the [[flow.boundary]] blocks (one condition
+    each, one block per part: checked by the schema)."""
+    boundary = {}
+    for b in sec.boundary:
+        field = f"flow.boundary.{b.name}"
+        _boundary_part(mesh, b.name, f"{field}.name")
+        if b.rate is not None or b.mass_rate is not None:
+            # a total injection rate, spread uniformly over the part: flux density −rate/|part|;
+            # a mass rate is divided by the fluid density
+            key = "rate" if b.rate is not None else "mass_rate"
+            e = parse(getattr(b, key), f"{field}.{key}", params)
+            if e.names - {"t"}:
+                raise InputError(f"{field}.{key}", f"a rate may depend on t only (a schedule), got {e.text!r}")
+            part = float(mesh.geometry.face_area[mesh.boundary[b.name]].sum())
+            if key == "mass_rate":
+                part *= sec.fluid_density
+
+            def rate_flux(x, y, z, t=0.0, e=e, part=part):
+                return np.broadcast_to(-np.asarray(e(t=t), float) / part, np.shape(x)).astype(float)
+
+            rate_flux.text = f"-({e.text})/{part:g}"
+            boundary[b.name] = Flux(float(-e() / part) if e.is_constant else rate_flux)
+            continue
+        key = "pressure" if b.pressure is not None else "flux"
+        v = getattr(b, key)
+        if v == "exact":
+            boundary[b.name] = "exact"
+            continue
+        fn = parse(v, f"{field}.{key}", params)
+        val = float(fn()) if fn.is_constant else _point_fn(fn)
+        boundary[b.name] = Pressure(val) if key == "pressure" else Flux(val)
+    return boundary
+
+
+def _fracture_boundary(sec, mesh, params) -> dict:
+    """Boundary part -> Pressure or NO_FLOW for the fracture ends ([[flow.fracture_boundary]])."""
+    out = {}
+    for b in sec.fracture_boundary:
+        field = f"flow.fracture_boundary.{b.name}"
+        _boundary_part(mesh, b.name, f"{field}.name")
+        if b.no_flow:
+            out[b.name] = NO_FLOW
+        else:
+            fn = parse(b.pressure, f"{field}.pressure", params)
+            out[b.name] = Pressure(float(fn()) if fn.is_constant else _point_fn(fn))
+    return out
+
+
+def _exact(name, fm, data: FlowData, K, ap, cols, fvars):
+    """The manufactured solution with κ, Λ and C taken from the case's (uniform) data."""
+    field = "exact.solution"
+    on1 = gamma1_mask(fm, field)
+    d = fm.mesh.dim
+    k0 = K[0, 0, 0]
+    if not (np.allclose(K, k0 * np.eye(d)[None], rtol=1e-12, atol=0)):
+        raise InputError(field, "the manufactured Darcy solution needs a uniform isotropic permeability")
+    a = np.asarray(np.broadcast_to(ap(*cols, 0.0, **fvars), (fm.network.n_faces,)), float)
+    if ap.names - {"t"} and np.ptp(a) > 0 or "t" in ap.names:
+        raise InputError(field, "the manufactured Darcy solution needs a uniform constant aperture")
+    kfn = np.asarray(data.normal_permeability, float)
+    if np.ptp(kfn) > 1e-12 * abs(kfn[0]):
+        raise InputError(field, "the manufactured Darcy solution needs a uniform normal permeability")
+    eta = data.viscosity
+    lam = np.asarray(data.normal_transmissivity_law(a, kfn), float)
+    cond = np.asarray(data.conductivity_law(a), float)
+    if np.ptp(cond) > 1e-12 * abs(cond[0]):
+        raise InputError(field, "the manufactured Darcy solution needs a uniform fracture conductivity")
+    return DarcyManufactured(d, kappa=k0 / eta, lam=float(lam[0]) / eta, cond=float(cond[0]) / eta), on1

@@ -1,0 +1,297 @@
+"""From a case's ``[material]`` (or ``[[materials]]``), ``[mechanics]``, ``[contact]``, ``[exact]``
+and ``[solver]`` tables to the model's plain data (:class:`~polypore.models.mechanics.MechanicsData`).
+
+The tables, their keys, ranges and defaults are in :mod:`polypore.setup.schema.mechanics`
+(``polypore schema`` prints them); an example (SI units)::
+
+    [material]                 # uniform; or [[materials]] blocks with `region = "name"`
+    E = 1e10                   # Pa  (or mu = ..., lambda = ...)
+    nu = 0.2
+
+    [mechanics]
+    body_force = [0, "-2260*9.81"]     # N/m3, expressions of x, y, z, t, or "exact"
+    biot = 1.0                 # b in [0, 1]; 0 decouples
+
+    [[mechanics.boundary]]     # one block per boundary part (xmin ... zmax or mesh groups)
+    name = "xmin"
+    u = [0, 0]                 # all components (m), or "exact"; or ux, uy, uz (rollers)
+    traction = [-1e8, 0]       # Pa, σ n on the part; 0 in the components u/ux/uy/uz hold
+
+    [contact]                  # not needed without fractures
+    law = "coulomb"            # frictionless | tresca | coulomb
+    friction = 0.5             # F; expression of x, y, z and D (distance to the fracture's nearest tip)
+
+    [exact]
+    solution = "penny-shaped-crack"    # polypore/cases/penny_exact.py
+    stress = [[0, 0, 0], [0, 0, 0], [0, 0, 0]]   # remote stress (Pa, tension positive)
+
+Here the expressions are parsed and evaluated on the mesh, and what needs the mesh is checked:
+boundary parts and regions that exist, vectors of the mesh's dimension, friction and threshold
+≥ 0 on every fracture face, exact solutions that fit the case.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..cases.exact import SingleCrack, get_solution
+from ..cases.penny_exact import PennyCrack, penny_crack
+from ..cases.reference import REFERENCES, load_reference
+from ..core.errors import InputError
+from ..core.expressions import parse
+from ..mesh import FracturedMesh
+from ..models.fracture_geometry import tip_distance
+from ..models.materials import check_elastic, lame
+from ..models.mechanics import ContactSpec, DisplacementBC, MechanicsData, TractionBC
+from ..solvers.linear import LinearSolver
+from ..solvers.newton import NewtonOptions
+from .casefile import CaseFile
+from .schema.case import Solver
+from .schema.mechanics import Contact, Mechanics
+
+log = logging.getLogger("polypore")
+
+
+@dataclass
+class MechanicsSetup:
+    data: MechanicsData
+    solver: LinearSolver
+    newton: NewtonOptions
+    exact: object | None
+    E: np.ndarray
+    nu: np.ndarray
+
+
+def vector_field(value, field: str, dim: int, params, exact=None, exact_fn=None):
+    """A vector field (X (n, d), t) -> (n, d) from a list of d numbers/expressions or "exact"."""
+    if isinstance(value, str) and value == "exact":
+        if exact is None:
+            raise InputError(field, '"exact" needs an [exact] solution in the case')
+        return exact_fn
+    if not isinstance(value, list) or len(value) != dim:
+        raise InputError(field, f"expected a list of {dim} numbers or expressions of x, y, z, t, got {value!r}")
+    exprs = [parse(v, f"{field}[{i}]", params) for i, v in enumerate(value)]
+
+    def fn(X, t=0.0):
+        X = np.atleast_2d(X)
+        cols = {k: X[:, i] for i, k in enumerate("xyz"[:X.shape[1]])}
+        return np.stack([np.broadcast_to(e(t=t, **cols), (X.shape[0],)) for e in exprs], axis=1)
+
+    return fn
+
+
+def scalar_field(value, field: str, params):
+    e = parse(value, field, params)
+
+    def fn(X, t=0.0):
+        X = np.atleast_2d(X)
+        cols = {k: X[:, i] for i, k in enumerate("xyz"[:X.shape[1]])}
+        return np.broadcast_to(e(t=t, **cols), (X.shape[0],)).astype(float)
+
+    return fn
+
+
+def tensor_field(value, field: str, dim: int, params):
+    if not (isinstance(value, list) and len(value) == dim
+            and all(isinstance(r, list) and len(r) == dim for r in value)):
+        raise InputError(field, f"expected a {dim}×{dim} list of lists of numbers or expressions, got {value!r}")
+    rows = [vector_field(r, f"{field}[{i}]", dim, params) for i, r in enumerate(value)]
+
+    def fn(X, t=0.0):
+        return np.stack([r(X, t) for r in rows], axis=1)
+
+    return fn
+
+
+def _elastic(m, field: str) -> tuple[float, float]:
+    """(E, ν) of a [material] table (the schema checked the ranges of E, ν or μ, λ)."""
+    if m.mu is not None:
+        E, nu = m.mu * (3 * m.lam + 2 * m.mu) / (m.lam + m.mu), m.lam / (2 * (m.lam + m.mu))
+    else:
+        E, nu = m.E, m.nu
+    check_elastic(E, nu, field)
+    return E, nu
+
+
+def _materials(spec, fm: FracturedMesh):
+    mesh = fm.mesh
+    nc = mesh.n_cells
+    E = np.full(nc, np.nan)
+    nu = np.full(nc, np.nan)
+    if spec.materials:
+        for i, m in enumerate(spec.materials):
+            field = f"materials.{m.name or i}"
+            if m.region not in mesh.region_names:
+                raise InputError(f"{field}.region", f"unknown region {m.region!r}; the mesh has "
+                                 f"{', '.join(mesh.region_names)}")
+            sel = mesh.cell_region == mesh.region_names.index(m.region)
+            E[sel], nu[sel] = _elastic(m, field)
+        if np.isnan(E).any():
+            missing = sorted({mesh.region_names[r] for r in np.unique(mesh.cell_region[np.isnan(E)])})
+            raise InputError("materials", f"no material for region(s) {', '.join(missing)}")
+    else:
+        if spec.material is None:
+            raise InputError("material", "is required: give E (Pa) and nu, e.g. [material] E = 1e10, nu = 0.25")
+        E[:], nu[:] = _elastic(spec.material, "material")
+    return E, nu
+
+
+def _exact(spec, fm: FracturedMesh, params, E, nu, mu, lam):
+    """The [exact] solution (friction and pressure filled in later), or None."""
+    ex = spec.exact
+    if ex is None:
+        return None
+    if not (np.ptp(mu) == 0 and np.ptp(lam) == 0):
+        raise InputError("exact.solution", "exact solutions need one uniform material")
+    if ex.solution == "single-crack":
+        if fm.mesh.dim != 2:
+            raise InputError("exact.solution", "single-crack is a 2D solution; the mesh is 3D")
+        # the friction coefficient is filled in once [contact] has been read
+        return SingleCrack(ex.sigma, np.deg2rad(ex.psi_deg), ex.half_length, float(E[0]), float(nu[0]), 0.0)
+    if ex.solution in REFERENCES:
+        return load_reference(ex.solution, "exact.solution")
+    if ex.solution == "penny-shaped-crack":
+        # pressure and friction are filled in once [mechanics] and [contact] have been read
+        return _penny_table(ex, fm, params, float(E[0]), float(nu[0]))
+    sol = get_solution(ex.solution, mu[0], lam[0])
+    if sol.dim != fm.mesh.dim:
+        raise InputError("exact.solution", f"{ex.solution!r} is a {sol.dim}D solution; the mesh is {fm.mesh.dim}D")
+    return sol
+
+
+def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
+    """The mechanics tables of the case as model data for the mesh ``fm`` (InputError naming the field)."""
+    spec = case.spec
+    mesh = fm.mesh
+    d = mesh.dim
+    params = spec.parameters
+    E, nu = _materials(spec, fm)
+    mu, lam = lame(E, nu)
+    exact = _exact(spec, fm, params, E, nu, mu, lam)
+    sec = spec.mechanics or Mechanics()
+    if sec.bubbles == "one-sided" and spec.mesh.mirror != "none":
+        log.warning("mesh.mirror with one-sided bubbles: the bubbles sit on one side of each fracture, "
+                    "which breaks the mirror symmetry; set mechanics.bubbles = \"two-sided\" to get its benefit")
+    body_f = None if sec.body_force is None else vector_field(sec.body_force, "mechanics.body_force", d, params,
+                                                               exact, getattr(exact, "body_force", None))
+    pm_f = None if sec.matrix_pressure is None else scalar_field(sec.matrix_pressure, "mechanics.matrix_pressure",
+                                                                 params)
+    pf_f = None if sec.fracture_pressure is None else scalar_field(sec.fracture_pressure,
+                                                                   "mechanics.fracture_pressure", params)
+    s0_f = None if sec.initial_stress is None else tensor_field(sec.initial_stress, "mechanics.initial_stress", d,
+                                                                params)
+    disp, trac = _boundary(sec, mesh, params, exact)
+    c = spec.contact or Contact()
+    friction, threshold = _contact_values(c, fm, params)
+    if isinstance(exact, SingleCrack):
+        if np.ptp(friction) > 0:
+            raise InputError("contact.friction", "the single-crack analytic solution needs one friction coefficient")
+        exact = dataclasses.replace(exact, friction=float(friction[0]) if friction.size else 0.0)
+    if isinstance(exact, PennyCrack):
+        exact = _penny_loads(exact, fm, friction, pf_f)
+    s = spec.solver or Solver()
+    newton = NewtonOptions(tol=s.tolerance, increment_tol=s.increment_tolerance, max_iterations=s.max_iterations,
+                           label="contact Newton")
+    data = MechanicsData(mu=mu, lam=lam, displacement=tuple(disp), traction=tuple(trac), body_force=body_f,
+                         matrix_pressure=pm_f, biot=sec.biot, fracture_pressure=pf_f, initial_stress=s0_f,
+                         contact=ContactSpec(c.law, friction, threshold, c.beta, c.initial),
+                         two_sided=sec.bubbles == "two-sided", stabilisation=sec.stabilisation,
+                         **({"order": sec.order} if sec.order != 1 else {}))
+    return MechanicsSetup(data, LinearSolver(s.linear, **s.backend_options()), newton, exact, E, nu)
+
+
+def _boundary(sec: Mechanics, mesh, params, exact):
+    """Displacement and traction conditions of the [[mechanics.boundary]] blocks."""
+    d = mesh.dim
+    disp, trac = [], []
+    for b in sec.boundary:
+        field = f"mechanics.boundary.{b.name}"
+        if b.name not in mesh.boundary:
+            raise InputError(f"{field}.name", f"unknown boundary {b.name!r}; this mesh has "
+                             f"{', '.join(sorted(mesh.boundary))}")
+        if b.u is not None:
+            disp.append(DisplacementBC(b.name, tuple(range(d)), vector_field(b.u, f"{field}.u", d, params, exact,
+                                                                             getattr(exact, "u", None))))
+        for i, key in enumerate(("ux", "uy", "uz")):
+            v = getattr(b, key)
+            if v is None:
+                continue
+            if i >= d:
+                raise InputError(f"{field}.{key}", f"the mesh is {d}D: it has no {'xyz'[i]} component")
+            vals = [0.0] * d
+            vals[i] = v
+            disp.append(DisplacementBC(b.name, (i,), vector_field(vals, f"{field}.{key}", d, params)))
+        if b.traction is not None:
+            trac.append(TractionBC(b.name, vector_field(b.traction, f"{field}.traction", d, params)))
+    return disp, trac
+
+
+def _contact_values(c: Contact, fm: FracturedMesh, params):
+    """(friction, threshold) per fracture face, checked finite and ≥ 0."""
+    mesh, net = fm.mesh, fm.network
+    D = tip_distance(fm)
+    Dfin = np.where(np.isfinite(D), D, 1e30)
+    xf = mesh.geometry.face_centroid[net.faces]
+    cols = {k: xf[:, i] for i, k in enumerate("xyz"[:mesh.dim])}
+
+    def face_values(key, value):
+        e = parse(value, f"contact.{key}", params, extra=("D",))
+        out = np.broadcast_to(e(**cols, D=Dfin), (net.n_faces,)).astype(float)
+        if np.any(out < 0):
+            raise InputError(f"contact.{key}", f"must be ≥ 0 on every fracture face, got {value!r} "
+                             f"(min {out.min():g})")
+        return out
+
+    # without fracture faces there is no contact: the case needs no [contact] table
+    if c.law == "coulomb" and net.n_faces and c.friction is None:
+        raise InputError("contact.friction", "is required for the Coulomb law (a number ≥ 0 or an expression of "
+                         "x, y, z and D, the distance to the fracture's nearest tip)")
+    if c.law == "tresca" and net.n_faces and c.threshold is None:
+        raise InputError("contact.threshold", "is required for the Tresca law (Pa, a number ≥ 0 or an expression "
+                         "of x, y, z and D)")
+    return (face_values("friction", 0.0 if c.friction is None else c.friction),
+            face_values("threshold", 0.0 if c.threshold is None else c.threshold))
+
+
+def _penny_table(ex, fm: FracturedMesh, params, E: float, nu: float) -> PennyCrack:
+    """[exact] of a penny-shaped crack: its fracture, remote stress and optional radius and pressure."""
+    net = fm.network
+    if fm.mesh.dim != 3:
+        raise InputError("exact.solution", "penny-shaped-crack is a 3D solution; the mesh is 2D")
+    name = ex.fracture or (net.names[0] if len(net.names) == 1 else None)
+    if name not in net.names:
+        raise InputError("exact.fracture", f"unknown fracture {name!r}; known: {', '.join(net.names)}"
+                         + ("" if ex.fracture else " (name it: the case has more than one)"))
+    spec = net.specs[net.names.index(name)]
+    S = np.zeros((3, 3))
+    if ex.stress is not None:
+        centre = np.asarray(spec.vertices, float).mean(axis=0)[None]
+        S = tensor_field(ex.stress, "exact.stress", 3, params)(centre)[0]
+    try:
+        # NaN pressure: not given, taken from mechanics.fracture_pressure later
+        return penny_crack(spec, S, np.nan if ex.pressure is None else ex.pressure, E, nu, radius=ex.radius)
+    except ValueError as exc:
+        raise InputError("exact.fracture", str(exc)) from None
+
+
+def _penny_loads(exact: PennyCrack, fm: FracturedMesh, friction: np.ndarray, pf_f) -> PennyCrack:
+    """Fill in the penny crack's friction (and pressure, unless [exact] gave it) from the case."""
+    sel = fm.network.faces_of(exact.fracture)
+    F = friction[sel]
+    if F.size and np.ptp(F) > 0:
+        raise InputError("contact.friction", "the penny-shaped-crack solution needs one friction coefficient "
+                         "on the crack")
+    p = exact.pressure
+    if np.isnan(p):
+        p = 0.0
+        if pf_f is not None and sel.size:
+            vals = pf_f(fm.mesh.geometry.face_centroid[fm.network.faces[sel]])
+            if np.ptp(vals) > 1e-12 * max(np.abs(vals).max(), 1e-300):
+                raise InputError("mechanics.fracture_pressure", "the penny-shaped-crack solution needs a uniform "
+                                 "pressure on the crack")
+            p = float(vals[0])
+    return dataclasses.replace(exact, friction=float(F[0]) if F.size else 0.0, pressure=p)

@@ -1,0 +1,249 @@
+"""From a case's ``[mesh]``, ``[[fractures]]``, ``[[regions]]`` and ``[[boundaries]]`` tables to a
+:class:`~polypore.mesh.FracturedMesh`.
+
+The tables, their keys and defaults are in :mod:`polypore.setup.schema.geometry`; an example
+(all lengths in m)::
+
+    [mesh]
+    generator = "simplicial"   # cartesian | simplicial | voronoi | agglomerated | file
+    lower = [-1, -1, -1]       # box domain (not for "file")
+    upper = [1, 1, 1]
+    size = 0.25                # target cell size (cartesian may give `cells` instead)
+    fracture_size = 0.1        # simplicial/agglomerated: size on fractures (default: size)
+
+    [[fractures]]
+    name = "F1"
+    vertices = [[x, y(, z)], ...]   # 2D polyline / 3D planar polygon, or in 3D a regular polygon:
+    # centre = [x, y, z], radius = 0.12, sides = 6, normal = [0, 0, 1]
+
+    [[regions]]                     # optional material regions (cells by centroid)
+    name = "reservoir"
+    lower = [...]
+    upper = [...]
+
+    [[boundaries]]                  # optional extra boundary parts: the faces of part `on` whose
+    name = "injection"              # centroid lies in the box (e.g. the reservoir's face on xmin)
+    on = "xmin"
+    lower = [...]
+    upper = [...]
+
+Here the mesh is built and what needs it is checked: fractures inside the domain and
+conforming, regions that tile Ω, boundary parts that exist and select faces.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..core.errors import InputError
+from ..mesh import FracturedMesh, FractureSpec
+from ..mesh.mesh import with_boundary_parts, with_regions
+from .casefile import CaseFile
+
+log = logging.getLogger("polypore")
+
+
+def _fracture_specs(case) -> list[FractureSpec]:
+    """The fractures of a generated mesh (the schema checked their dimension)."""
+    specs = []
+    for f in case.fractures:
+        normal = None if f.normal is None else np.asarray(f.normal)
+        if f.radius is not None:
+            V = regular_polygon(np.asarray(f.centre), f.radius, normal, f.sides, f"fractures.{f.name}.normal")
+        else:
+            V = np.asarray(f.vertices)
+        specs.append(FractureSpec(f.name, V, normal))
+    return specs
+
+
+def regular_polygon(centre, radius, normal, sides, field="normal") -> np.ndarray:
+    """(sides, 3) vertices of a regular polygon; the first lies along normal × (e_z or e_x)."""
+    n = np.asarray(normal, float)
+    if not np.linalg.norm(n) > 0:
+        raise InputError(field, "must be a non-zero vector")
+    n = n / np.linalg.norm(n)
+    ref = np.array([0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    e1 = np.cross(n, ref)
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    th = 2 * np.pi * np.arange(sides) / sides
+    return centre + radius * (np.cos(th)[:, None] * e1 + np.sin(th)[:, None] * e2)
+
+
+def _regions(case, dim: int):
+    out = []
+    for r in case.regions:
+        if len(r.lower) != dim:
+            raise InputError(f"regions.{r.name}.lower", f"must have {dim} coordinates (the mesh is {dim}D), got "
+                             f"{r.lower}")
+        out.append((r.name, np.asarray(r.lower), np.asarray(r.upper)))
+    return out
+
+
+def _interfaces(regions, lower, upper) -> list[FractureSpec]:
+    """Sides of region boxes strictly inside the domain: the mesh must conform to them."""
+    dim = lower.size
+    out = []
+    tol = 1e-12 * float(np.max(upper - lower))
+    for name, lo, hi in regions:
+        lo_c, hi_c = np.maximum(lo, lower), np.minimum(hi, upper)
+        for k in range(dim):
+            for val in (lo[k], hi[k]):
+                if val <= lower[k] + tol or val >= upper[k] - tol:
+                    continue
+                if dim == 2:
+                    j = 1 - k
+                    V = np.zeros((2, 2))
+                    V[:, k] = val
+                    V[:, j] = [lo_c[j], hi_c[j]]
+                else:
+                    j, m = [a for a in range(3) if a != k]
+                    V = np.zeros((4, 3))
+                    V[:, k] = val
+                    V[:, j] = [lo_c[j], hi_c[j], hi_c[j], lo_c[j]]
+                    V[:, m] = [lo_c[m], lo_c[m], hi_c[m], hi_c[m]]
+                out.append(FractureSpec(f"{name}:{'xyz'[k]}={val:g}", V))
+    # the same plane from two adjacent regions: keep one
+    uniq = {}
+    for s in out:
+        uniq.setdefault((tuple(np.round(s.vertices, 12).ravel())), s)
+    return list(uniq.values())
+
+
+def _boundary_parts(case, fm: FracturedMesh) -> FracturedMesh:
+    mesh = fm.mesh
+    parts = {}
+    for b in case.boundaries:
+        field = f"boundaries.{b.name}"
+        if b.name in mesh.boundary:
+            raise InputError(f"{field}.name", f"boundary part {b.name!r} exists already; choose another name")
+        if b.on not in mesh.boundary:
+            raise InputError(f"{field}.on", f"unknown boundary part {b.on!r}; this mesh has {sorted(mesh.boundary)}")
+        if len(b.lower) != mesh.dim:
+            raise InputError(f"{field}.lower", f"must have {mesh.dim} coordinates (the mesh is {mesh.dim}D), got "
+                             f"{b.lower}")
+        lo, hi = np.asarray(b.lower), np.asarray(b.upper)
+        faces = mesh.boundary[b.on]
+        c = mesh.geometry.face_centroid[faces]
+        sel = faces[np.all((c >= lo) & (c <= hi), axis=1)]
+        if sel.size == 0:
+            raise InputError(f"{field}.lower", f"no face of {b.on!r} has its centroid in the box {lo.tolist()} – "
+                             f"{hi.tolist()}")
+        parts[b.name] = sel
+    if not parts:
+        return fm
+    return FracturedMesh(with_boundary_parts(mesh, parts), fm.network, fm.sides)
+
+
+def _assign_regions(fm: FracturedMesh, regions, field="regions") -> FracturedMesh:
+    mesh = fm.mesh
+    c = mesh.geometry.cell_centroid
+    tag = np.full(mesh.n_cells, -1)
+    count = np.zeros(mesh.n_cells, int)
+    for i, (name, lo, hi) in enumerate(regions):
+        inside = np.all((c >= lo) & (c <= hi), axis=1)
+        tag[inside] = i
+        count += inside
+    if np.any(count == 0):
+        k = int(np.flatnonzero(count == 0)[0])
+        raise InputError(field, f"the regions do not cover the domain: {int(np.sum(count == 0))} cell(s) lie in no "
+                         f"region, e.g. the cell at {np.round(c[k], 6).tolist()}; regions must tile Ω")
+    if np.any(count > 1):
+        k = int(np.flatnonzero(count > 1)[0])
+        raise InputError(field, f"regions overlap at {np.round(c[k], 6).tolist()}; each cell must be in one region")
+    mesh = with_regions(mesh, tag, [r[0] for r in regions])
+    return FracturedMesh(mesh, fm.network, fm.sides)
+
+
+def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
+    """Generate (or read) the case's mesh, map its fractures and compute node sides.
+
+    Logs each stage with its wall time. Raises InputError for any bad field.
+    """
+    spec = case.spec
+    m = spec.mesh
+    t0 = time.perf_counter()
+    if m.generator == "file":
+        return _file_mesh(case, spec, t0)
+    lower, upper = np.asarray(m.lower), np.asarray(m.upper)
+    dim = lower.size
+    specs = _fracture_specs(spec)
+    regions = _regions(spec, dim)
+    interfaces = _interfaces(regions, lower, upper)
+    if m.generator == "cartesian":
+        from ..mesh.generators.cartesian import cartesian_mesh, grid_coordinates
+
+        if m.cells is not None:   # `cells` takes precedence over a size inherited from the case
+            cells = [int(c) for c in m.cells]
+        else:
+            cells = [max(1, int(np.ceil((upper[k] - lower[k]) / m.size))) for k in range(dim)]
+        include = [set() for _ in range(dim)]
+        for s in list(specs) + interfaces:
+            for k in range(dim):
+                include[k].update(np.asarray(s.vertices)[:, k].tolist())
+        axes = [grid_coordinates(lower[k], upper[k], cells[k], sorted(include[k])) for k in range(dim)]
+        mesh = cartesian_mesh(axes)
+    elif m.generator == "simplicial":
+        from ..mesh.generators.simplicial import simplicial_mesh
+
+        mesh = simplicial_mesh(lower, upper, specs, m.size, fracture_size=m.fracture_size or m.size,
+                               interfaces=interfaces, seed=m.seed, grading=m.grading, tip_size=m.tip_size,
+                               mirror=m.mirror)
+    elif m.generator == "voronoi":
+        from ..mesh.generators.voronoi import voronoi_mesh
+
+        mesh = voronoi_mesh(lower, upper, m.size, list(specs) + interfaces, seed=m.seed)
+    else:  # agglomerated
+        from ..mesh import build_network
+        from ..mesh.generators.agglomerate import agglomerate
+        from ..mesh.generators.simplicial import simplicial_mesh
+
+        fsize = m.fracture_size or m.size
+        base = simplicial_mesh(lower, upper, specs, m.size / 2, fracture_size=fsize / 2, interfaces=interfaces,
+                               seed=m.seed, grading=m.grading)
+        keep = build_network(base, list(specs) + interfaces).faces
+        mesh = agglomerate(base, keep, rounds=m.rounds, seed=m.seed)
+    log.info("%s mesh generator: %d cells in %.2f s", m.generator, mesh.n_cells, time.perf_counter() - t0)
+    if m.perturb > 0:
+        from ..mesh.generators.perturb import perturb
+
+        mesh = perturb(mesh, m.perturb, list(specs) + interfaces, seed=m.seed)
+    t1 = time.perf_counter()
+    fm = FracturedMesh.build(mesh, specs)
+    log.info("mapped %d fracture(s) (%d faces) and %d node sides in %.2f s", len(specs), fm.network.n_faces,
+             fm.sides.n_sides, time.perf_counter() - t1)
+    if regions:
+        fm = _assign_regions(fm, regions)
+    return _boundary_parts(spec, fm)
+
+
+def _file_mesh(case: CaseFile, spec, t0: float) -> FracturedMesh:
+    """A Gmsh file's mesh; its fractures are interior physical groups."""
+    from ..mesh.msh import read_msh
+
+    path = Path(spec.mesh.file)
+    if not path.is_absolute():
+        path = Path(spec.base_dir or ".") / path
+    mesh, groups_found = read_msh(str(path))
+    dim = mesh.dim
+    named, normals = {}, {}
+    for f in spec.fractures:
+        grp = f.group or f.name
+        if grp not in groups_found:
+            raise InputError(f"fractures.{f.name}.group", f"the mesh file {str(path)!r} has no interior physical "
+                             f"group {grp!r}; its fracture groups are {sorted(groups_found)}")
+        if f.normal is not None and len(f.normal) != dim:
+            raise InputError(f"fractures.{f.name}.normal", f"must have {dim} components (the mesh is {dim}D), got "
+                             f"{f.normal}")
+        named[f.name] = groups_found[grp]
+        normals[f.name] = f.normal
+    log.info("read %s (%d cells) in %.2f s", path, mesh.n_cells, time.perf_counter() - t0)
+    fm = FracturedMesh.from_faces(mesh, named, normals)
+    regions = _regions(spec, dim)
+    if regions:
+        fm = _assign_regions(fm, regions)
+    return _boundary_parts(spec, fm)

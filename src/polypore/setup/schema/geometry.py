@@ -1,0 +1,141 @@
+"""Schema of the geometry tables: ``[mesh]``, ``[[fractures]]``, ``[[regions]]``, ``[[boundaries]]``.
+
+All lengths in m. Each generator reads its own keys of ``[mesh]`` (:data:`GENERATOR_KEYS`);
+a key of another generator is an error rather than silently ignored.
+"""
+
+from __future__ import annotations
+
+from pydantic import Field, model_validator
+
+from .types import Positive, Table, Text, choice, fail, number, points, vector
+
+# polypore.mesh.generators.mirror.MODES (importing it would load gmsh; tests/test_schema.py compares)
+MIRROR_MODES = ("none", "tips", "fractures")
+GENERATORS = ("cartesian", "simplicial", "voronoi", "agglomerated", "file")
+_BOX = {"lower", "upper", "seed", "perturb"}
+GENERATOR_KEYS = {
+    "cartesian": _BOX | {"cells", "size"},
+    "simplicial": _BOX | {"size", "fracture_size", "grading", "tip_size", "mirror"},
+    "voronoi": _BOX | {"size"},
+    "agglomerated": _BOX | {"size", "fracture_size", "grading", "rounds"},
+    "file": {"file"},
+}
+Coordinates = vector((2, 3), "coordinates (m)")
+
+
+def check_box(lower, upper, key="upper", strict=True):
+    """Fail unless ``upper`` exceeds ``lower`` (or equals it, unless ``strict``) in every direction."""
+    if lower is None or upper is None:
+        return
+    if len(upper) != len(lower):
+        fail(f"must have {len(lower)} coordinates like lower, got {upper}", key=key)
+    if any(h < lo or strict and h == lo for lo, h in zip(lower, upper)):
+        fail(f"must {'exceed' if strict else 'be at least'} lower {lower} in every direction, got {upper}", key=key)
+
+
+class Mesh(Table):
+    """``[mesh]``: a generated box mesh or a Gmsh file."""
+
+    generator: choice(*GENERATORS) = Field("simplicial", description="mesh generator")
+    lower: Coordinates | None = Field(None, description="lower corner of the box domain (m); not with a file")
+    upper: Coordinates | None = Field(None, description="upper corner of the box domain (m)")
+    size: Positive | None = Field(None, description="target cell size (m); cartesian may give `cells` instead")
+    cells: vector((2, 3), "positive integers") | None = Field(
+        None, description="cartesian: cells per direction (takes precedence over `size`)")
+    fracture_size: Positive | None = Field(None, description="simplicial, agglomerated: cell size on the "
+                                           "fractures (m; default: size)")
+    grading: Positive = Field(0.4, description="simplicial, agglomerated: growth of the cell size per unit "
+                              "distance from the fractures")
+    tip_size: Positive | None = Field(None, description="simplicial: cell size at crack tips / tip lines (m)")
+    mirror: choice(*MIRROR_MODES) = Field("none", description="simplicial: mesh symmetric about the fractures "
+                                          "around tips (2D) or along straight fractures")
+    rounds: number(ge=0, integer=True) = Field(2, description="agglomerated: rounds of pairwise merging")
+    perturb: number(ge=0, le=0.4) = Field(0.0, description="random node perturbation, fraction of the local "
+                                          "edge length")
+    seed: number(ge=0, integer=True) = Field(0, description="seed of the random generators")
+    file: Text | None = Field(None, description="file: the Gmsh .msh file (relative to the case file)")
+
+    @model_validator(mode="after")
+    def _generator_keys(self):
+        allowed = GENERATOR_KEYS[self.generator] | {"generator"}
+        for key in sorted(self.given() - allowed):
+            users = [g for g, keys in GENERATOR_KEYS.items() if key in keys]
+            fail(f"does not apply to generator = {self.generator!r} (only to {', '.join(users)})", key=key)
+        if self.generator == "file":
+            if self.file is None:
+                fail("is required with generator = \"file\" (the path of a Gmsh .msh file)", key="file")
+            return self
+        for key in ("lower", "upper"):
+            if getattr(self, key) is None:
+                fail(f"is required with generator = {self.generator!r}: the box corner (m), e.g. [0, 0] or "
+                     "[0, 0, 0]", key=key)
+        check_box(self.lower, self.upper)
+        if self.cells is not None:
+            if len(self.cells) != len(self.lower):
+                fail(f"must give {len(self.lower)} numbers like lower, got {self.cells}", key="cells")
+            if any(c < 1 or int(c) != c for c in self.cells):
+                fail(f"must be positive integers, got {self.cells}", key="cells")
+        elif self.size is None:
+            fail(f"is required with generator = {self.generator!r}: the target cell size (m)"
+                 + (" (or give cells)" if self.generator == "cartesian" else ""), key="size")
+        return self
+
+    @property
+    def dim(self) -> int | None:
+        """2 or 3 for a generated mesh, None for a file (known once read)."""
+        return None if self.lower is None else len(self.lower)
+
+
+class Fracture(Table):
+    """``[[fractures]]``: a 2D polyline or 3D planar polygon, or in 3D a regular polygon."""
+
+    name: Text = Field(description="name of the fracture (results and --set address it by name)")
+    vertices: points("points [x, y] or [x, y, z]", 2) | None = Field(
+        None, description="2D polyline / 3D planar polygon (m)")
+    centre: vector(3, "coordinates (m)") | None = Field(None, description="3D regular polygon: centre (m)")
+    radius: Positive | None = Field(None, description="3D regular polygon: circumradius (m)")
+    sides: number(ge=3, integer=True) = Field(6, description="3D regular polygon: number of sides")
+    normal: vector((2, 3), "components") | None = Field(None, description="3D: direction of n⁺ (required for a "
+                                                        "regular polygon); file meshes: d components")
+    group: Text | None = Field(None, description="file meshes: the physical group (default: name)")
+
+    @model_validator(mode="after")
+    def _shape(self):
+        given = self.given()
+        polygon = {"centre", "radius", "sides"} & given
+        if self.vertices is not None and polygon:
+            fail(f"give either vertices or a regular polygon (centre, radius, sides), not both; got "
+                 f"{', '.join(sorted(polygon))} with vertices", key=sorted(polygon)[0])
+        if polygon:
+            for key in ("centre", "radius", "normal"):
+                if key not in given:
+                    fail(f"is required for a regular polygon (with {', '.join(sorted(polygon))})", key=key)
+        return self
+
+
+class Region(Table):
+    """``[[regions]]``: a material region, the cells whose centroid lies in a box."""
+
+    name: Text = Field(description="region name (used by [[materials]] and flow tables by region)")
+    lower: Coordinates = Field(description="lower corner of the box (m)")
+    upper: Coordinates = Field(description="upper corner of the box (m)")
+
+    @model_validator(mode="after")
+    def _box(self):
+        check_box(self.lower, self.upper)
+        return self
+
+
+class BoundaryPart(Table):
+    """``[[boundaries]]``: an extra boundary part, the faces of part ``on`` with centroid in a box."""
+
+    name: Text = Field(description="name of the new boundary part")
+    on: Text = Field(description="the boundary part it is cut from (xmin ... zmax or a mesh group)")
+    lower: Coordinates = Field(description="lower corner of the box (m)")
+    upper: Coordinates = Field(description="upper corner of the box (m)")
+
+    @model_validator(mode="after")
+    def _box(self):
+        check_box(self.lower, self.upper, strict=False)   # a flat box selects the faces in a plane
+        return self

@@ -1,0 +1,131 @@
+"""Schema of the mechanics tables: ``[material]``, ``[[materials]]``, ``[mechanics]`` with its
+``[[mechanics.boundary]]`` blocks, ``[contact]`` (SI units).
+
+Values that vary in space or time are expressions of x, y, z, t (:mod:`polypore.core.expressions`),
+parsed when the case is set up on its mesh; here they are checked to be a finite number or a text.
+"""
+
+from __future__ import annotations
+
+from pydantic import Field, model_validator
+
+from ...models.contact import LAWS
+from .types import Expr, ExprTensor, ExprVector, ExprVectorOrExact, Positive, Table, Text, choice, fail, number
+
+
+class Material(Table):
+    """``[material]``: isotropic elasticity, E and ν or the Lamé parameters μ and λ."""
+
+    E: Positive | None = Field(None, description="Young's modulus (Pa)")
+    nu: number(gt=-1, lt=0.5) | None = Field(None, description="Poisson's ratio in (−1, 0.5)")
+    mu: Positive | None = Field(None, description="shear modulus μ (Pa), with lambda")
+    lam: number() | None = Field(None, alias="lambda", description="Lamé's first parameter λ (Pa) > −2μ/3, with mu")
+
+    @model_validator(mode="after")
+    def _one_pair(self):
+        given = self.given()
+        young, lame = given & {"E", "nu"}, given & {"mu", "lambda"}
+        if young and lame:
+            fail(f"give E and nu, or mu and lambda, not both pairs; got {', '.join(sorted(given))}",
+                 key=sorted(lame)[0])
+        pair = ("mu", "lambda") if lame else ("E", "nu")
+        for key in pair:
+            if key not in given:
+                fail(f"is required: give {pair[0]} and {pair[1]}" + (" (Pa)" if lame else " (Pa and Poisson's "
+                     "ratio)"), key=key)
+        if lame and not self.lam > -2 * self.mu / 3:
+            fail(f"must exceed −2μ/3 = {-2 * self.mu / 3:g} Pa (a positive bulk modulus), got {self.lam!r}",
+                 key="lambda")
+        return self
+
+
+class RegionMaterial(Material):
+    """``[[materials]]``: the material of one region (``[[regions]]``)."""
+
+    region: Text = Field(description="the region ([[regions]] name) this material fills")
+    name: Text | None = Field(None, description="a label (optional)")
+
+
+class MechanicsBoundary(Table):
+    """``[[mechanics.boundary]]``: the condition on one boundary part (no block: traction-free)."""
+
+    name: Text = Field(description="boundary part: xmin ... zmax, a mesh group or a [[boundaries]] part")
+    u: ExprVectorOrExact | None = Field(None, description="displacement, all components (m), or \"exact\"")
+    ux: Expr | None = Field(None, description="x displacement (m) (a roller)")
+    uy: Expr | None = Field(None, description="y displacement (m)")
+    uz: Expr | None = Field(None, description="z displacement (m)")
+    traction: ExprVector | None = Field(None, description="σ n on the part (Pa); 0 in the components a "
+                                        "displacement holds")
+
+    @model_validator(mode="after")
+    def _conditions(self):
+        given = self.given()
+        rollers = sorted(given & {"ux", "uy", "uz"})
+        if "u" in given and rollers:
+            fail("conflicts with `u` on the same boundary part (u holds every component)", key=rollers[0])
+        if not given - {"name"}:
+            fail("gives no condition: give u, ux, uy, uz or traction (a part without a block is "
+                 "traction-free)", key="name")
+        if self.traction is not None and (self.u is not None or rollers):
+            held = range(len(self.traction)) if self.u is not None else ["xyz".index(k[1]) for k in rollers]
+            bad = [i for i in held if i >= len(self.traction) or not _zero(self.traction[i])]
+            if bad:
+                given_u = "u" if self.u is not None else ", ".join(rollers)
+                fail(f"{self.traction!r} conflicts with the displacement condition {given_u} on the same part: its "
+                     f"{'xyz'[bad[0]]} component would be ignored; give the traction only in the free components "
+                     f"(0 in {', '.join('xyz'[i] for i in held)}) or drop {given_u}", key="traction")
+        return self
+
+
+def _zero(v) -> bool:
+    try:
+        return float(v) == 0
+    except (TypeError, ValueError):
+        return False
+
+
+class Mechanics(Table):
+    """``[mechanics]``: discretisation options, loads, the Biot coefficient and boundary conditions."""
+
+    order: number(ge=1, le=2, integer=True) = Field(1, description="displacement space: 1 nodal + bubbles, 2 "
+                                                    "quadratic (simplicial meshes)")
+    bubbles: choice("one-sided", "two-sided") = Field("one-sided", description="face bubbles on one or both "
+                                                       "sides of each fracture")
+    stabilisation: Positive = Field(1.0, description="scaling of the stabilisation")
+    body_force: ExprVectorOrExact | None = Field(None, description="body force (N/m³), per component, or "
+                                                 "\"exact\"")
+    matrix_pressure: Expr | None = Field(None, description="p_m (Pa) of the Biot term −b p_m I")
+    biot: number(ge=0, le=1) = Field(1.0, description="Biot coefficient b in [0, 1] (0: no coupling)")
+    fracture_pressure: Expr | None = Field(None, description="p_f (Pa) on the fracture faces")
+    initial_stress: ExprTensor | None = Field(None, description="σ0 (Pa), d×d: total stress = σ0 + σ(u)")
+    boundary: list[MechanicsBoundary] = Field(default_factory=list, description="one block per boundary part")
+
+    @model_validator(mode="after")
+    def _one_block_per_part(self):
+        seen = set()
+        for i, b in enumerate(self.boundary):
+            if b.name in seen:
+                # the model would apply both: later displacements overwrite earlier ones, tractions add up
+                fail(f"boundary {b.name!r} is given twice; one [[mechanics.boundary]] block per part (put its "
+                     "u/ux/uy/uz and traction together)", key=("boundary", i, "name"))
+            seen.add(b.name)
+        return self
+
+
+class Contact(Table):
+    """``[contact]``: the contact law on the fractures (not needed without fractures)."""
+
+    law: choice(*LAWS) = Field("coulomb", description="contact law")
+    friction: Expr | None = Field(None, description="coulomb: friction coefficient F ≥ 0, an expression of x, "
+                                  "y, z and D (distance to the fracture's nearest tip, m)")
+    threshold: Expr | None = Field(None, description="tresca: threshold g ≥ 0 (Pa), same variables")
+    beta: Positive = Field(1.0, description="c in β = c (2μ + λ)/h of the augmented multipliers")
+    initial: choice("closed", "open") = Field("closed", description="first Newton iterate: closed (bonded) or "
+                                              "open (λ = 0)")
+
+    @model_validator(mode="after")
+    def _law_keys(self):
+        for key, law in (("friction", "coulomb"), ("threshold", "tresca")):
+            if key in self.given() and self.law != law:
+                fail(f"applies to law = {law!r} only; this case has law = {self.law!r}", key=key)
+        return self
