@@ -155,3 +155,23 @@ def test_force_refuses_a_folder_that_is_not_a_result(tmp_path, tiny, cli):
     code, _, err = cli("run", str(proj / "case.toml"), "--out", str(proj), "--force")
     assert code == 2 and "holds the case file" in err, err
     assert (proj / "case.toml").read_text() == tiny.read_text()
+
+
+@pytest.mark.parametrize("where", ["remove_stale_stages", "_host"])
+def test_interrupt_while_the_stage_is_being_made_leaves_failed_json(tmp_path, monkeypatch, where):
+    """A signal that lands while run_directory claims its stage (before the run starts) still
+    ends with failed.json in place of the old result and no stage left behind."""
+    from polypore.io import atomic
+
+    out = tmp_path / "res"
+    _old_result(out)
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(atomic, where, interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        with atomic.run_directory(out, force=True):
+            pass
+    assert sorted(p.name for p in out.iterdir()) == ["failed.json"]
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(atomic.STAGE_PREFIX)]

@@ -246,14 +246,18 @@ def run_directory(out, *, force: bool = False, option: str = "--out") -> Iterato
     out = Path(os.path.abspath(out))
     if out.parent == out:
         raise InputError(option, f"{str(out)!r} is a file system root; choose a folder inside it")
-    out.parent.mkdir(parents=True, exist_ok=True)
-    remove_stale_stages(out.parent)
-    # out's name only helps a reader: cut, with the host's, to keep within a file name's 255 bytes
-    stage = out.parent / f"{STAGE_PREFIX}{out.name[:80]}@{_host()}.{os.getpid()}.{uuid.uuid4().hex[:12]}"
-    stage.mkdir()
-    _ACTIVE.add(stage)
+    stage = None
+    # everything from here on sits inside the try: a signal (SIGTERM/SIGINT raise in the main
+    # thread) that lands between creating the stage and entering a later try would otherwise
+    # escape without failed.json and leave the stage behind
     try:
         try:
+            out.parent.mkdir(parents=True, exist_ok=True)
+            remove_stale_stages(out.parent)
+            # out's name only helps a reader: cut, with the host's, to keep within a file name's 255 bytes
+            stage = out.parent / f"{STAGE_PREFIX}{out.name[:80]}@{_host()}.{os.getpid()}.{uuid.uuid4().hex[:12]}"
+            _ACTIVE.add(stage)
+            stage.mkdir()
             yield stage
         except BaseException as exc:
             try:
@@ -272,5 +276,6 @@ def run_directory(out, *, force: bool = False, option: str = "--out") -> Iterato
             shutil.move(str(stage / name), str(out / name))
         _sync_dir(out)
     finally:
-        _ACTIVE.discard(stage)
-        shutil.rmtree(stage, ignore_errors=True)
+        if stage is not None:
+            _ACTIVE.discard(stage)
+            shutil.rmtree(stage, ignore_errors=True)
