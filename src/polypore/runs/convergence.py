@@ -12,6 +12,7 @@ import numpy as np
 from ..core.errors import InputError
 from ..io.atomic import atomic_write_text
 from ..io.plots import convergence_plot
+from ..io.progress import Progress
 from ..io.results import staged_run_directory, write_json
 from ..setup.casefile import CaseFile, case_model
 from .common import unknowns
@@ -60,17 +61,19 @@ def run_convergence(case: CaseFile, levels: int, out: Path) -> dict:
     if levels < 2:
         raise InputError("--levels", f"need at least 2 levels to fit a rate, got {levels}")
     rows = []
-    for k in range(levels):
-        t0 = time.perf_counter()
-        c = refined(case, k)
-        point = convergence_point(c)
-        errors, h = point["errors"], point["h"]
-        if not errors:
-            raise InputError("exact", f"case {case.name!r} has no exact or analytic solution ([exact] table); "
-                             "a convergence study needs one")
-        rows.append({"level": k, **point, "seconds": time.perf_counter() - t0})
-        log.info("level %d: h %.4g, %d unknowns, %s", k, h, rows[-1]["unknowns"],
-                 ", ".join(f"{n} {v:.3e}" for n, v in errors.items()))
+    # each level halves h: about 2^d times the unknowns, and at least that much work
+    with Progress(levels, "levels", growth=4.0) as bar:
+        for k in range(levels):
+            t0 = time.perf_counter()
+            c = refined(case, k)
+            point = convergence_point(c)
+            errors, h = point["errors"], point["h"]
+            if not errors:
+                raise InputError("exact", f"case {case.name!r} has no exact or analytic solution ([exact] table); "
+                                 "a convergence study needs one")
+            rows.append({"level": k, **point, "seconds": time.perf_counter() - t0})
+            log.info("level %d: h %.4g, %d unknowns, %s (%s)", k, h, rows[-1]["unknowns"],
+                     ", ".join(f"{n} {v:.3e}" for n, v in errors.items()), bar.advance(rows[-1]["seconds"]))
     names = list(rows[0]["errors"])
     hs = [r["h"] for r in rows]
     rates = {n: fit_rate(hs, [r["errors"][n] for r in rows]) for n in names}

@@ -144,8 +144,8 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             steps.append(row)
             lin = f", {sum(info.linear_iterations)} GMRES iterations" if info.linear_iterations else ""
             log.info("step %d/%d: t = %g s, %d Newton iterations (residual %.1e)%s, open %d, stick %d, slip %d, "
-                     "%.2f s", rec.index, len(schedule.times()) - 1, rec.time, info.iterations, info.residual, lin,
-                     info.open, info.stick, info.slip, rec.seconds)
+                     "%.2f s (%s)", rec.index, len(schedule.times()) - 1, rec.time, info.iterations, info.residual, lin,
+                     info.open, info.stick, info.slip, rec.seconds, rec.progress)
             record(st)
             if is_out:
                 output(k_out[0], rec.index, st)

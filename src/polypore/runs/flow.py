@@ -22,6 +22,7 @@ import numpy as np
 from .. import __version__
 from ..cases.flow_exact import flow_errors, slot_values
 from ..io.atomic import atomic_write_text
+from ..io.progress import Progress
 from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
 from ..io.vtu import write_bulk_vtu, write_fracture_vtu, write_pvd
 from ..mesh.fractures import BOUNDARY
@@ -213,18 +214,19 @@ def run_flow(case: CaseFile, out: Path) -> dict:
             _write_state(stage, 0, model, setup, sol, pvd)
             blocks.append(_csv_block(0, model, sol, s))
             k_out = 1
-            for n in range(1, times.size):
-                t0 = time.perf_counter()
-                old, sol = sol, model.step(sol, times[n] - times[n - 1])
-                bal = balances(model, sol, old, times[n] - times[n - 1])
-                steps.append({"time": sol.time, "seconds": time.perf_counter() - t0,
-                              "mass_balance": bal["mass_balance"]["residual"]})
-                log.info("step %d/%d: t = %g s, %.2f s, mass balance %.2e m³/s", n, times.size - 1, sol.time,
-                         steps[-1]["seconds"], bal["mass_balance"]["residual"])
-                if setup.schedule.is_output(n, float(times[n])):
-                    _write_state(stage, k_out, model, setup, sol, pvd)
-                    blocks.append(_csv_block(n, model, sol, s))
-                    k_out += 1
+            with Progress(times.size - 1, "steps") as bar:
+                for n in range(1, times.size):
+                    t0 = time.perf_counter()
+                    old, sol = sol, model.step(sol, times[n] - times[n - 1])
+                    bal = balances(model, sol, old, times[n] - times[n - 1])
+                    steps.append({"time": sol.time, "seconds": time.perf_counter() - t0,
+                                  "mass_balance": bal["mass_balance"]["residual"]})
+                    log.info("step %d/%d: t = %g s, %.2f s, mass balance %.2e m³/s (%s)", n, times.size - 1,
+                             sol.time, steps[-1]["seconds"], bal["mass_balance"]["residual"], bar.advance())
+                    if setup.schedule.is_output(n, float(times[n])):
+                        _write_state(stage, k_out, model, setup, sol, pvd)
+                        blocks.append(_csv_block(n, model, sol, s))
+                        k_out += 1
         write_pvd(stage / "solution.pvd", pvd)
         write_fractures_csv(stage / "fractures.csv", blocks)
         if mesh.dim == 2:

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from ..core.errors import RunError
+from ..io.progress import Progress
 from ..setup.schedule import TimeSchedule
 
 log = logging.getLogger("polypore")
@@ -24,6 +25,7 @@ class StepRecord:
     info: dict = field(default_factory=dict)
     cuts: int = 0
     seconds: float = 0.0
+    progress: str = ""      # 'elapsed …, about … left' after this step
 
 
 def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | None = None, label: str = "step"):
@@ -36,14 +38,16 @@ def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | Non
     """
     times = schedule.times()
     records = []
-    for k in range(1, len(times)):
-        t0, t1 = float(times[k - 1]), float(times[k])
-        tic = _time.perf_counter()
-        state, info, cuts = _advance(state, t0, t1, step, schedule.max_cuts, 0)
-        rec = StepRecord(k, t1, t1 - t0, info, cuts, _time.perf_counter() - tic)
-        records.append(rec)
-        if on_step is not None:
-            on_step(rec, state, schedule.is_output(k, t1))
+    with Progress(len(times) - 1, f"{label}s") as bar:
+        for k in range(1, len(times)):
+            t0, t1 = float(times[k - 1]), float(times[k])
+            tic = _time.perf_counter()
+            state, info, cuts = _advance(state, t0, t1, step, schedule.max_cuts, 0)
+            rec = StepRecord(k, t1, t1 - t0, info, cuts, _time.perf_counter() - tic)
+            rec.progress = bar.advance()
+            records.append(rec)
+            if on_step is not None:
+                on_step(rec, state, schedule.is_output(k, t1))
     return state, records
 
 
