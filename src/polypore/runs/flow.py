@@ -137,7 +137,7 @@ def _csv_block(step: int, model, sol, s) -> dict:
 
 
 def _plots_2d(stage: Path, case: CaseFile, model, setup: FlowSetup, sol, s):
-    from ..io.plots import _plt, save
+    from ..io.plots import MAX_COLUMNS, _plt, format_time, save, value_unit
     from ..io.vtu import bulk_cells
 
     plt = _plt()
@@ -149,7 +149,10 @@ def _plots_2d(stage: Path, case: CaseFile, model, setup: FlowSetup, sol, s):
     polys = [c["points"][c["connectivity"][a:b], :2] for a, b in zip(starts, c["offsets"])]
     lo, hi = mesh.bounding_box
     fig, ax = plt.subplots(figsize=(8, 8 * (hi[1] - lo[1]) / (hi[0] - lo[0]) + 0.8))
-    pc = PolyCollection(polys, array=sol.cell, cmap="viridis", edgecolors="face", linewidths=0.1)
+    t_end = None if setup.steady else float(setup.schedule.times()[-1])
+    when = "" if t_end is None else f", t = {format_time(sol.time, t_end)}"     # a steady run has no time
+    fp, up = value_unit("Pa", float(np.abs(sol.cell).max()) if sol.cell.size else 0.0)
+    pc = PolyCollection(polys, array=sol.cell / fp, cmap="viridis", edgecolors="face", linewidths=0.1)
     ax.add_collection(pc)
     seg = mesh.nodes[mesh.face_nodes.values.reshape(-1, 2)[net.faces]]
     ax.add_collection(LineCollection(seg, colors="white", linewidths=2.2))
@@ -157,34 +160,42 @@ def _plots_2d(stage: Path, case: CaseFile, model, setup: FlowSetup, sol, s):
     ax.set_xlim(lo[0], hi[0])
     ax.set_ylim(lo[1], hi[1])
     ax.set_aspect("equal")
-    fig.colorbar(pc, ax=ax, label="matrix pressure p_m (Pa)", shrink=0.8)
+    fig.colorbar(pc, ax=ax, label=f"matrix pressure p_m ({up})", shrink=0.8)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"{case.name}: matrix pressure, t = {sol.time:g} s", fontsize=10)
+    ax.set_title(f"{case.name}: matrix pressure{when}", fontsize=10)
     save(fig, stage / "pressure_map.png")
     # p_f and the two traces along each fracture
     nf = len(net.names)
     if nf == 0 or net.n_faces == 0:
         return
-    fig, axes = plt.subplots(1, nf, figsize=(3.2 * nf + 1, 3.2), squeeze=False)
+    ncol = min(nf, MAX_COLUMNS)
+    nrow = -(-nf // ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(3.6 * ncol + 1, 3.0 * nrow + 0.6), squeeze=False,
+                             layout="constrained")
+    for ax in axes.ravel()[nf:]:
+        ax.axis("off")
+    axes = axes.ravel()[None, :]
     xf = mesh.geometry.face_centroid[net.faces]
     for j, name in enumerate(net.names):
         ax = axes[0, j]
         f = np.flatnonzero(net.fracture == j)
         f = f[np.argsort(s[f])]
-        ax.plot(s[f], sol.trace[f, 0], "-", lw=0.8, color="tab:orange", label="p⁺ (matrix trace)")
-        ax.plot(s[f], sol.trace[f, 1], "-", lw=0.8, color="tab:green", label="p⁻ (matrix trace)")
-        ax.plot(s[f], sol.fracture[f], ".-", ms=3, lw=1.0, color="tab:blue", label="p_f")
+        ax.plot(s[f], sol.trace[f, 0] / fp, "-", lw=0.8, color="tab:orange", label="p⁺ (matrix trace)")
+        ax.plot(s[f], sol.trace[f, 1] / fp, "-", lw=0.8, color="tab:green", label="p⁻ (matrix trace)")
+        ax.plot(s[f], sol.fracture[f] / fp, ".-", ms=3, lw=1.0, color="tab:blue", label="p_f")
         if setup.exact is not None:
-            ax.plot(s[f], setup.exact.p_f(xf[f], setup.on_gamma1[f]), "k--", lw=0.8, label="exact p_f")
+            ax.plot(s[f], setup.exact.p_f(xf[f], setup.on_gamma1[f]) / fp, "k--", lw=0.8, label="exact p_f")
         ax.set_title(name, fontsize=9)
         ax.set_xlabel("arc length s (m)", fontsize=8)
+        ax.ticklabel_format(axis="y", useOffset=False)    # an offset label collides with the title
+        if j % ncol == 0:
+            ax.set_ylabel(f"pressure ({up})", fontsize=8)
         if j == 0:
-            ax.set_ylabel("pressure (Pa)", fontsize=8)
             ax.legend(fontsize=7)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
-    fig.suptitle(f"{case.name}: fracture pressure and matrix traces, t = {sol.time:g} s", fontsize=10)
+    fig.suptitle(f"{case.name}: fracture pressure and matrix traces{when}", fontsize=10)
     save(fig, stage / "fracture_pressure.png")
 
 
