@@ -39,8 +39,8 @@ def coarse_overrides(name: str) -> list[str]:
     """``--set`` overrides that make the case's mesh coarse (a few hundred cells)."""
     data = load_case(name).data
     m = data["mesh"]
-    if m.get("generator") == "file":
-        return []
+    if m.get("generator") in ("file", "grdecl", "cornerpoint"):
+        return []                 # a given grid (fault indices refer to its cells): kept as it is
     extent = max(h - lo for lo, h in zip(m["lower"], m["upper"]))
     # every polygon edge is resolved: a 64-gon as an 8-gon
     out = [f"fractures.{f['name']}.sides=8" for f in data.get("fractures", []) if f.get("sides", 0) > 8]

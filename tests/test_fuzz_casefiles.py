@@ -18,7 +18,7 @@ def test_every_coarse_builtin_sets_up():
         assert outcome(case) == ("ok", None), name
 
 
-@settings(max_examples=300, derandomize=True, database=None, deadline=timedelta(seconds=10),
+@settings(max_examples=300, derandomize=True, database=None, deadline=timedelta(seconds=60),
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large, HealthCheck.filter_too_much])
 @given(mutated_cases())
 def test_mutated_cases_succeed_or_name_a_field(example):

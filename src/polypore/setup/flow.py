@@ -29,6 +29,7 @@ length in 2D, the square root of its area in 3D (m).
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -37,14 +38,16 @@ from ..cases.flow_exact import DarcyManufactured, gamma1_mask
 from ..core.errors import InputError
 from ..core.expressions import parse
 from ..mesh import FracturedMesh
-from ..models.flow import FlowData, FlowModel, Flux, NO_FLOW, Pressure, permeability_tensor
+from ..models.flow import FlowData, FlowModel, Flux, NO_FLOW, Pressure, evaluate, permeability_tensor
 from ..models.fracture_geometry import tip_distance
 from ..solvers.linear import LinearSolver
 from .casefile import CaseFile
 from .schedule import TimeSchedule, parse_schedule
 from .schema.case import Solver
+from .schema.flow import GRDECL
 
 FRACTURE_VARS = ("D", "L")
+log = logging.getLogger("polypore")
 
 
 @dataclass
@@ -121,7 +124,19 @@ def _permeability(flow, mesh, params) -> np.ndarray:
     c = mesh.geometry.cell_centroid
     K = np.full((nc, d, d), np.nan)
     value = flow.permeability
-    if isinstance(value, dict):
+    if value == GRDECL:
+        from ..mesh.cornerpoint import cell_permeability
+
+        grid, info = _grid(mesh, "flow.permeability")
+        K[:] = cell_permeability(grid, info)
+        bad = ~(np.linalg.eigvalsh(K)[:, 0] > 0)
+        if bad.any():
+            i, j, k = (int(a) + 1 for a in info.cell_ijk[np.flatnonzero(bad)[0]])
+            raise InputError("flow.permeability", f"\"grdecl\": PERMX/PERMY/PERMZ (× NTG) of {grid.source} give a "
+                             f"zero permeability in {int(bad.sum())} active cell(s), e.g. cell ({i}, {j}, {k}); "
+                             "flow needs K > 0 (make those cells inactive or give a number)")
+        value = None
+    elif isinstance(value, dict):
         for name, v in value.items():
             f = f"flow.permeability.{name}"
             sel = _region(mesh, name, f)
@@ -132,7 +147,7 @@ def _permeability(flow, mesh, params) -> np.ndarray:
         sel = _region(mesh, r.name, f"flow.regions.{r.name}.name")
         K[sel] = _tensor(r.permeability, f"flow.regions.{r.name}.permeability", params, c[sel], d)
     if np.isnan(K).any():
-        if value is None and not flow.regions:
+        if flow.permeability is None and not flow.regions:
             raise InputError("flow.permeability", "is required: the matrix permeability K_m in m² (a number, a "
                              f"{d}×{d} matrix or a table by region)")
         missing = sorted({mesh.region_names[i] for i in np.unique(mesh.cell_region[np.isnan(K).any(axis=(1, 2))])})
@@ -156,6 +171,8 @@ def _by_region(value, field: str, mesh) -> np.ndarray | None:
         return np.full(mesh.n_cells, float(value))
     out = np.full(mesh.n_cells, np.nan)
     for name, v in value.items():
+        if v == GRDECL:
+            raise InputError(f"{field}.{name}", "\"grdecl\" applies to the whole grid, not to one region")
         out[_region(mesh, name, f"{field}.{name}")] = v
     if np.isnan(out).any():
         missing = sorted({mesh.region_names[i] for i in np.unique(mesh.cell_region[np.isnan(out)])})
@@ -163,9 +180,42 @@ def _by_region(value, field: str, mesh) -> np.ndarray | None:
     return out
 
 
+def _grid(mesh, field: str):
+    """(grid, info) of a corner-point mesh, for a value given as "grdecl"."""
+    from .meshing import cornerpoint_of
+
+    cp = cornerpoint_of(mesh)
+    if cp is None:
+        raise InputError(field, "\"grdecl\" takes the values from a corner-point grid's keywords, but this mesh is "
+                         "not one (mesh.generator = \"grdecl\" or \"cornerpoint\")")
+    return cp
+
+
+def grid_porosity(mesh, field: str = "flow.porosity") -> np.ndarray:
+    """(n_cells,) pore-volume fraction PORO × NTG × MULTPV of a corner-point mesh (NTG, MULTPV
+    default 1)."""
+    grid, info = _grid(mesh, field)
+    if "PORO" not in grid.properties:
+        raise InputError(field, f"\"grdecl\": {grid.source} has no PORO keyword; give the porosity as a number")
+    phi = info.cell_values(grid.properties["PORO"]).astype(float)
+    for kw in ("NTG", "MULTPV"):
+        if kw in grid.properties:
+            phi = phi * info.cell_values(grid.properties[kw])
+    bad = ~((phi > 0) & (phi <= 1))
+    if bad.any():
+        c = np.flatnonzero(bad)[0]
+        i, j, k = (int(a) + 1 for a in info.cell_ijk[c])
+        raise InputError(field, f"\"grdecl\": PORO × NTG × MULTPV of {grid.source} is {phi[c]:g} in cell "
+                         f"({i}, {j}, {k}) ({int(bad.sum())} cell(s) outside (0, 1])")
+    return phi
+
+
 def _storage(flow, mesh):
     """M (Pa): a number, inf, a table by region, or from porosity φ and fluid compressibility
-    c_w as 1/M = φ c_w (incompressible grains, b = 1: the Choice of C6)."""
+    c_w as 1/M = φ c_w (incompressible grains, b = 1: the Choice of C6); φ = "grdecl" takes
+    PORO × NTG × MULTPV of a corner-point grid."""
+    if flow.porosity == GRDECL:
+        return 1.0 / (grid_porosity(mesh) * flow.fluid_compressibility)
     if flow.porosity is not None:
         return 1.0 / (_by_region(flow.porosity, "flow.porosity", mesh) * flow.fluid_compressibility)
     M = _by_region(flow.biot_modulus, "flow.biot_modulus", mesh)
@@ -244,7 +294,7 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
             return "exact"   # the schema checked that the case has an [exact] solution
         return _point_fn(parse(v, f"flow.{key}", params, extra=extra), None if not extra else fvars)
 
-    cell_source = source("source", ())
+    cell_source = _with_wells(source("source", ()), sec, mesh, params)
     fracture_source = source("fracture_source", FRACTURE_VARS)
     initial = None
     if not steady:
@@ -358,3 +408,49 @@ def _exact(name, fm, data: FlowData, K, ap, cols, fvars):
     if np.ptp(cond) > 1e-12 * abs(cond[0]):
         raise InputError(field, "the manufactured Darcy solution needs a uniform fracture conductivity")
     return DarcyManufactured(d, kappa=k0 / eta, lam=float(lam[0]) / eta, cond=float(cond[0]) / eta), on1
+
+
+def well_cells(mesh, well, field: str) -> np.ndarray:
+    """Mesh cells of a ``[[flow.wells]]`` block: its column (i, j) and layers k1...k2 (1-based)."""
+    grid, info = _grid(mesh, f"{field}.column")
+    nx, ny, nz = grid.dims
+    i, j = (int(a) for a in well.column)
+    if not (1 <= i <= nx and 1 <= j <= ny):
+        raise InputError(f"{field}.column", f"[{i}, {j}] lies outside the grid: i in 1 ... {nx}, j in 1 ... {ny}")
+    k1, k2 = (1, nz) if well.layers is None else (int(a) for a in well.layers)
+    if k2 > nz:
+        raise InputError(f"{field}.layers", f"[{k1}, {k2}] goes below the grid's {nz} layers")
+    cells = info.cells_in(i - 1, j - 1, (k1 - 1, k2 - 1))
+    if cells.size == 0:
+        raise InputError(f"{field}.column", f"column [{i}, {j}], layers {k1} ... {k2}, has no active cell")
+    return cells
+
+
+def _with_wells(base, sec, mesh, params):
+    """The cell source h_m (1/s) plus the wells' rates, each spread over its cells by volume."""
+    if not sec.wells:
+        return base
+    if base == "exact":
+        raise InputError("flow.wells", "wells cannot be combined with source = \"exact\"")
+    vol = mesh.geometry.cell_volume
+    wells = []
+    for w in sec.wells:
+        field = f"flow.wells.{w.name}"
+        cells = well_cells(mesh, w, field)
+        key = "rate" if w.rate is not None else "mass_rate"
+        e = parse(getattr(w, key), f"{field}.{key}", params)
+        if e.names - {"t"}:
+            raise InputError(f"{field}.{key}", f"a rate may depend on t only (a schedule), got {e.text!r}")
+        scale = 1.0 / (float(vol[cells].sum()) * (sec.fluid_density if key == "mass_rate" else 1.0))
+        wells.append((cells, e, scale))
+        log.info("well %s: %d cells, %.4g m³", w.name, cells.size, float(vol[cells].sum()))
+    n = mesh.n_cells
+
+    def source(x, y, z, t=0.0):
+        h = np.array(np.broadcast_to(evaluate(base, np.stack([x, y, z], 1), t, "flow.source"), (n,)), float)
+        for cells, e, scale in wells:
+            h[cells] += float(e(t=t)) * scale
+        return h
+
+    source.text = f"source + {len(wells)} well(s)"
+    return source

@@ -147,8 +147,10 @@ def estimate_cells(spec) -> tuple[float, str]:
 
 def _cells(spec) -> tuple[float, str]:
     m = spec.mesh
-    if m.generator == "file":
+    if m.generator in ("file", "grdecl"):
         return math.nan, "mesh.file"
+    if m.generator == "cornerpoint":   # at most nx·ny·nz (inactive and pinched-out cells are left out)
+        return float(math.prod(m.cells)), "mesh.cells"
     d = len(m.lower)
     extent = [hi - lo for lo, hi in zip(m.lower, m.upper)]
     volume = math.prod(extent)
@@ -176,7 +178,7 @@ def estimate(spec, levels: int = 1) -> Estimate:
     """Cells, unknowns, steps and memory of a run of ``spec`` (validated case); with ``levels`` > 1,
     of the finest mesh of a convergence study (each level halves the mesh sizes)."""
     cells, field = estimate_cells(spec)
-    d = 2 if spec.mesh.lower is None else len(spec.mesh.lower)
+    d = spec.mesh.dim or 2
     if levels > 1:
         cells *= 2.0 ** (d * (levels - 1)) if levels - 1 < 1000 else math.inf
         field = "--levels"

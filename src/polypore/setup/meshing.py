@@ -21,6 +21,11 @@ The tables, their keys and defaults are in :mod:`polypore.setup.schema.geometry`
     lower = [...]
     upper = [...]
 
+    # or a corner-point grid (docs/cornerpoint.md): generator = "grdecl" with file = "model.grdecl",
+    # or generator = "cornerpoint" with cells, extent, top, dip and [[mesh.faults]]; its boundary
+    # parts are west, east, south, north, top, bottom (and internal), and [[fractures]] select faults:
+    # name = "F1", fault = "F1" (default: the name); unselected faults stay bonded
+
     [[boundaries]]                  # optional extra boundary parts: the faces of part `on` whose
     name = "injection"              # centroid lies in the box (e.g. the reservoir's face on xmin)
     on = "xmin"
@@ -33,8 +38,11 @@ conforming, regions that tile Ω, boundary parts that exist and select faces.
 
 from __future__ import annotations
 
+import dataclasses
+import difflib
 import logging
 import time
+import weakref
 from pathlib import Path
 
 import numpy as np
@@ -169,6 +177,8 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
     t0 = time.perf_counter()
     if m.generator == "file":
         return _file_mesh(case, spec, t0)
+    if m.generator in ("grdecl", "cornerpoint"):
+        return _cornerpoint_mesh(spec, t0)
     lower, upper = np.asarray(m.lower), np.asarray(m.upper)
     dim = lower.size
     specs = _fracture_specs(spec)
@@ -247,3 +257,77 @@ def _file_mesh(case: CaseFile, spec, t0: float) -> FracturedMesh:
     if regions:
         fm = _assign_regions(fm, regions)
     return _boundary_parts(spec, fm)
+
+
+# -- corner-point grids --------------------------------------------------------------------------
+_CORNERPOINT: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def cornerpoint_of(mesh):
+    """(CornerPointGrid, CornerPointInfo) the mesh was processed from, or None (not a corner-point mesh).
+
+    The info's cells are the mesh's cells; its ``faults`` are every fault of the grid.
+    """
+    return _CORNERPOINT.get(mesh)
+
+
+def _cornerpoint_grid(spec):
+    """The case's corner-point grid: read from the GRDECL file or generated."""
+    from ..mesh.cornerpoint import FaultSpec, generate_grid, read_grdecl
+
+    m = spec.mesh
+    if m.generator == "grdecl":
+        path = Path(m.file)
+        if not path.is_absolute():
+            path = Path(spec.base_dir or ".") / path
+        if not path.is_file():
+            raise InputError("mesh.file", f"GRDECL file {str(path)!r} does not exist (a relative path is taken from "
+                             "the case file's folder)")
+        return read_grdecl(path)
+    nx, ny, nz = (int(c) for c in m.cells)
+    faults = [FaultSpec(f.axis, int(f.index), float(f.throw), start=None if f.start is None else int(f.start),
+                        stop=None if f.stop is None else int(f.stop), name=f.name) for f in m.faults]
+    return generate_grid(nx, ny, nz, extent=tuple(m.extent), top=m.top, dip=m.dip, faults=faults,
+                         pinchout=[int(k) - 1 for k in (m.pinchout or [])], inactive=m.inactive, seed=m.seed)
+
+
+def _selected_faults(spec, info) -> dict:
+    """[[fractures]] name -> fault faces, the faults they select (InputError naming the field)."""
+    known = sorted(info.faults)
+    out, taken = {}, {}
+    for f in spec.fractures:
+        fault = f.fault or f.name
+        field = f"fractures.{f.name}.{'fault' if f.fault else 'name'}"
+        if fault not in info.faults:
+            lower = {k.lower(): k for k in known}
+            close = [lower[c] for c in difflib.get_close_matches(fault.lower(), list(lower), n=1)]
+            raise InputError(field, f"unknown fault {fault!r}" + (f" (did you mean {close[0]!r}?)" if close else "")
+                             + f"; the grid's faults are {', '.join(known) or 'none'}")
+        if fault in taken:
+            raise InputError(field, f"fault {fault!r} is selected twice (by {taken[fault]!r} and {f.name!r})")
+        taken[fault] = f.name
+        out[f.name] = info.faults[fault]
+    return out
+
+
+def _cornerpoint_mesh(spec, t0: float) -> FracturedMesh:
+    """A corner-point grid's mesh; the faults named by [[fractures]] become contact surfaces."""
+    from ..mesh.cornerpoint import fractured_mesh, process_grid
+
+    m = spec.mesh
+    grid = _cornerpoint_grid(spec)
+    mesh, info = process_grid(grid, nonplanar=m.nonplanar, regions=m.region_keyword)
+    log.info("%s grid %s: %d active cells -> %d cells, %d faces; faults %s (%.2f s)", m.generator,
+             "×".join(map(str, grid.dims)), info.n_active, mesh.n_cells, mesh.n_faces,
+             {k: int(v.size) for k, v in info.faults.items()}, time.perf_counter() - t0)
+    selected = _selected_faults(spec, info)
+    fm = fractured_mesh(mesh, dataclasses.replace(info, faults=selected), list(selected))
+    bonded = sorted(set(info.faults) - {f.fault or f.name for f in spec.fractures})
+    if bonded:
+        log.info("faults left bonded (not in [[fractures]]): %s", ", ".join(bonded))
+    regions = _regions(spec, 3)
+    if regions:
+        fm = _assign_regions(fm, regions)
+    fm = _boundary_parts(spec, fm)
+    _CORNERPOINT[fm.mesh] = (grid, info)
+    return fm

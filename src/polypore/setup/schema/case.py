@@ -21,7 +21,7 @@ from ...cases.reference import REFERENCES
 from ...core.expressions import CONSTANTS, FUNCTIONS, VARIABLES
 from ...solvers.linear import BACKENDS
 from .flow import Flow
-from .geometry import BoundaryPart, Fracture, Mesh, Region
+from .geometry import CORNERPOINT, BoundaryPart, Fracture, Mesh, Region
 from .mechanics import Contact, Material, Mechanics, RegionMaterial
 from .types import (ExprTensor, Number, NonNegative, Positive, Table, Text, choice, fail, finite, is_number, number,
                     show, vector)
@@ -167,6 +167,9 @@ class InitialState(Table):
     stress_ratio: Positive = Field(description="k = σ_h/σ_v")
     surface: Number = Field(0.0, description="elevation of the ground surface (m)")
     surface_pressure: Number = Field(0.0, description="p_s (Pa)")
+    stress_ratio_max: Positive | None = Field(None, description="3D: k_H = σ_H/σ_v of the largest horizontal "
+                                              "stress (default stress_ratio: isotropic horizontal stress)")
+    azimuth: number(ge=-180, le=180) = Field(0.0, description="3D: direction of σ_H, degrees from +x towards +y")
 
 
 def _points(v):
@@ -294,7 +297,16 @@ class Case(Table):
                 if item.name in seen:
                     fail(f"{item.name!r} is given twice; names must differ", key=(key, i, "name"))
                 seen.add(item.name)
+        cornerpoint = self.mesh.generator in CORNERPOINT
         for i, f in enumerate(self.fractures):
+            if cornerpoint:
+                for k in sorted(f.given() - {"name", "fault"}):
+                    fail("does not apply to a fault of a corner-point grid (its faces come from the grid; select "
+                         "it by `fault`)", key=("fractures", i, k))
+                continue
+            if "fault" in f.given():
+                fail("applies to corner-point grids only (generator = \"grdecl\" or \"cornerpoint\")",
+                     key=("fractures", i, "fault"))
             if file_mesh:
                 for k in sorted(f.given() - {"name", "group", "normal"}):
                     fail("does not apply to a fracture of a mesh file (its faces are the physical group `group`)",

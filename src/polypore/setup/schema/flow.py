@@ -12,8 +12,9 @@ from typing import Any, Annotated
 from pydantic import Field, PlainValidator, WithJsonSchema, model_validator
 
 from .types import (EXPRESSION, Boolean, Expr, ExprOrExact, NonNegative, Positive, Table, Text, _expression,
-                    _tensor, fail, finite, is_number, number, show)
+                    _tensor, fail, finite, is_number, number, show, vector)
 
+GRDECL = "grdecl"   # a value taken from the cell keywords of a corner-point grid
 _EXPR = {"anyOf": [{"type": "number"}, {"type": "string"}]}
 _MATRIX = {"type": "array", "items": {"type": "array", "items": _EXPR}}
 
@@ -54,8 +55,10 @@ def _modulus(v):
 
 
 def _porosity(v):
+    if v == GRDECL:
+        return v
     if not is_number(v) or not 0 < v <= 1:
-        fail(f"must be a number in (0, 1], got {show(v)}")
+        fail(f"must be a number in (0, 1] or \"grdecl\" (PORO × NTG × MULTPV of a corner-point grid), got {show(v)}")
     return float(v)
 
 
@@ -68,8 +71,9 @@ Permeability = Annotated[Any, PlainValidator(_by_region(_permeability_value, "a 
 Modulus = Annotated[Any, PlainValidator(_by_region(_modulus, "a positive number or \"inf\"")),
                     WithJsonSchema(_region_table({"anyOf": [{"type": "number", "exclusiveMinimum": 0},
                                                             {"enum": ["inf", "infinity"]}]}))]
-Porosity = Annotated[Any, PlainValidator(_by_region(_porosity, "a number in (0, 1]")),
-                     WithJsonSchema(_region_table({"type": "number", "exclusiveMinimum": 0, "maximum": 1}))]
+Porosity = Annotated[Any, PlainValidator(_by_region(_porosity, "a number in (0, 1] or \"grdecl\"")),
+                     WithJsonSchema(_region_table({"anyOf": [{"type": "number", "exclusiveMinimum": 0, "maximum": 1},
+                                                             {"enum": [GRDECL]}]}))]
 
 
 class FlowRegion(Table):
@@ -121,6 +125,31 @@ class FractureBoundary(Table):
         return self
 
 
+class Well(Table):
+    """``[[flow.wells]]``: injection into the cells of one column of a corner-point grid (a vertical well)."""
+
+    name: Text = Field(description="well name")
+    column: vector(2, "cell indices") = Field(description="[i, j] of the column (1-based, as in the GRDECL file)")
+    layers: vector(2, "layer numbers") | None = Field(None, description="[k1, k2], the perforated layers "
+                                                      "(1-based, inclusive; default: all)")
+    rate: Expr | None = Field(None, description="injected volume rate (m³/s; < 0 produces), an expression of t")
+    mass_rate: Expr | None = Field(None, description="injected mass rate (kg/s), divided by flow.fluid_density")
+
+    @model_validator(mode="after")
+    def _checks(self):
+        given = self.given() & {"rate", "mass_rate"}
+        if len(given) != 1:
+            fail("give exactly one of rate (m³/s) or mass_rate (kg/s)" + (
+                f"; got {', '.join(sorted(given))}" if given else ""), key="mass_rate" if given else "rate")
+        for key in ("column", "layers"):
+            v = getattr(self, key)
+            if v is not None and any(int(a) != a or a < 1 for a in v):
+                fail(f"must be positive integers (1-based), got {v}", key=key)
+        if self.layers is not None and self.layers[1] < self.layers[0]:
+            fail(f"must be [first, last] with first ≤ last, got {self.layers}", key="layers")
+        return self
+
+
 class Flow(Table):
     """``[flow]``: mixed-dimensional Darcy flow data."""
 
@@ -153,6 +182,8 @@ class Flow(Table):
     boundary: list[FlowBoundary] = Field(default_factory=list, description="one block per boundary part")
     fracture_boundary: list[FractureBoundary] = Field(default_factory=list, description="fracture ends on "
                                                       "boundary parts")
+    wells: list[Well] = Field(default_factory=list, description="corner-point grids: injection into columns of "
+                              "cells")
 
     @model_validator(mode="after")
     def _conflicts(self):
@@ -163,11 +194,12 @@ class Flow(Table):
             key = "fluid_compressibility" if "porosity" in given else "porosity"
             fail("is required with " + ("porosity (1/Pa)" if "porosity" in given else
                                         "fluid_compressibility: 1/M = φ c_w"), key=key)
-        for key in ("boundary", "fracture_boundary"):
+        for key in ("boundary", "fracture_boundary", "wells"):
             seen = set()
             for i, b in enumerate(getattr(self, key)):
                 if b.name in seen:
-                    fail(f"boundary {b.name!r} is given twice; one [[flow.{key}]] block per part",
+                    fail(f"{'well' if key == 'wells' else 'boundary'} {b.name!r} is given twice; one [[flow.{key}]] "
+                         "block per " + ("well" if key == "wells" else "part"),
                          key=(key, i, "name"))
                 seen.add(b.name)
         return self

@@ -12,7 +12,9 @@ from .types import Positive, Table, Text, choice, fail, number, points, vector
 
 # polypore.mesh.generators.mirror.MODES (importing it would load gmsh; tests/test_schema.py compares)
 MIRROR_MODES = ("none", "tips", "fractures")
-GENERATORS = ("cartesian", "simplicial", "voronoi", "agglomerated", "file")
+GENERATORS = ("cartesian", "simplicial", "voronoi", "agglomerated", "file", "grdecl", "cornerpoint")
+CORNERPOINT = ("grdecl", "cornerpoint")   # corner-point grids (docs/cornerpoint.md): 3D, faults from the grid
+NONPLANAR = ("centre", "diagonal", "keep")   # polypore.mesh.cornerpoint.process_grid(nonplanar=)
 _BOX = {"lower", "upper", "seed", "perturb"}
 GENERATOR_KEYS = {
     "cartesian": _BOX | {"cells", "size"},
@@ -20,6 +22,9 @@ GENERATOR_KEYS = {
     "voronoi": _BOX | {"size"},
     "agglomerated": _BOX | {"size", "fracture_size", "grading", "rounds"},
     "file": {"file"},
+    "grdecl": {"file", "nonplanar", "region_keyword"},
+    "cornerpoint": {"cells", "extent", "top", "dip", "faults", "pinchout", "inactive", "seed", "nonplanar",
+                    "region_keyword"},
 }
 Coordinates = vector((2, 3), "coordinates (m)")
 
@@ -34,8 +39,20 @@ def check_box(lower, upper, key="upper", strict=True):
         fail(f"must {'exceed' if strict else 'be at least'} lower {lower} in every direction, got {upper}", key=key)
 
 
+class CornerPointFault(Table):
+    """``[[mesh.faults]]``: a vertical fault of a generated corner-point grid (on a line of pillars)."""
+
+    name: Text = Field(description="fault name ([[fractures]] fault = name selects it as a contact surface)")
+    axis: choice("i", "j") = Field(description="i: on the pillar line i = index (strikes along y); j: j = index")
+    index: number(ge=1, integer=True) = Field(description="pillar line, 1 ≤ index ≤ n − 1 (n cells along axis)")
+    throw: number() = Field(description="depth offset of the high-index side (m; > 0: it goes down)")
+    start: number(ge=0, integer=True) | None = Field(None, description="first pillar along the line (default 0)")
+    stop: number(ge=1, integer=True) | None = Field(None, description="last pillar along the line (default "
+                                                    "the end); the throw tapers to zero where it ends inside")
+
+
 class Mesh(Table):
-    """``[mesh]``: a generated box mesh or a Gmsh file."""
+    """``[mesh]``: a generated box mesh, a Gmsh file or a corner-point grid (GRDECL file or generated)."""
 
     generator: choice(*GENERATORS) = Field("simplicial", description="mesh generator")
     lower: Coordinates | None = Field(None, description="lower corner of the box domain (m); not with a file")
@@ -54,7 +71,20 @@ class Mesh(Table):
     perturb: number(ge=0, le=0.4) = Field(0.0, description="random node perturbation, fraction of the local "
                                           "edge length")
     seed: number(ge=0, integer=True) = Field(0, description="seed of the random generators")
-    file: Text | None = Field(None, description="file: the Gmsh .msh file (relative to the case file)")
+    file: Text | None = Field(None, description="file: the Gmsh .msh file; grdecl: the GRDECL file (relative to "
+                              "the case file)")
+    nonplanar: choice(*NONPLANAR) = Field("centre", description="grdecl, cornerpoint: warped faces split "
+                                          "around a centre node, along a diagonal, or kept")
+    region_keyword: Text | None = Field(None, description="grdecl, cornerpoint: integer cell keyword (e.g. "
+                                        "FACIES) whose values v make the regions KEYWORD_v")
+    extent: vector(3, "lengths (m)") | None = Field(None, description="cornerpoint: (Lx, Ly, H), horizontal "
+                                                    "size and layer-stack thickness (m)")
+    top: number() = Field(1000.0, description="cornerpoint: depth of the top of the stack at x = 0 (m)")
+    dip: number(gt=-80, lt=80) = Field(0.0, description="cornerpoint: dip of the layers along +x (degrees)")
+    faults: list[CornerPointFault] = Field(default_factory=list, description="cornerpoint: the faults")
+    pinchout: vector(None, "layer numbers") | None = Field(None, description="cornerpoint: layers (1-based) "
+                                                           "thinning to zero towards x = 0")
+    inactive: number(ge=0, lt=1) = Field(0.0, description="cornerpoint: fraction of randomly inactive cells")
 
     @model_validator(mode="after")
     def _generator_keys(self):
@@ -66,6 +96,12 @@ class Mesh(Table):
             if self.file is None:
                 fail("is required with generator = \"file\" (the path of a Gmsh .msh file)", key="file")
             return self
+        if self.generator == "grdecl":
+            if self.file is None:
+                fail("is required with generator = \"grdecl\" (the path of a GRDECL file)", key="file")
+            return self
+        if self.generator == "cornerpoint":
+            return self._cornerpoint()
         for key in ("lower", "upper"):
             if getattr(self, key) is None:
                 fail(f"is required with generator = {self.generator!r}: the box corner (m), e.g. [0, 0] or "
@@ -81,9 +117,44 @@ class Mesh(Table):
                  + (" (or give cells)" if self.generator == "cartesian" else ""), key="size")
         return self
 
+    def _cornerpoint(self):
+        for key, what in (("cells", "[nx, ny, nz], the cells along x, y and the layers"),
+                          ("extent", "[Lx, Ly, H] (m), the horizontal size and the thickness of the stack")):
+            if getattr(self, key) is None:
+                fail(f"is required with generator = \"cornerpoint\": {what}", key=key)
+        if len(self.cells) != 3 or any(c < 1 or int(c) != c for c in self.cells):
+            fail(f"must be 3 positive integers [nx, ny, nz], got {self.cells}", key="cells")
+        if any(not 0 < v <= 1e6 for v in self.extent):
+            fail(f"must be 3 positive lengths of at most 1000 km (m), got {self.extent}", key="extent")
+        if not abs(self.top) <= 1e5:
+            # depths beyond 100 km leave too few digits for the corner-point intersections
+            fail(f"must be a depth within ±100 km (m), got {self.top}", key="top")
+        nz = int(self.cells[2])
+        for v in self.pinchout or []:
+            if int(v) != v or not 1 <= v <= nz:
+                fail(f"must be layer numbers 1 ... {nz} (1-based), got {self.pinchout}", key="pinchout")
+        seen = set()
+        for i, f in enumerate(self.faults):
+            n = int(self.cells[0 if f.axis == "i" else 1])
+            if not 1 <= f.index <= n - 1:
+                fail(f"must lie in 1 ... {n - 1} (a pillar line strictly inside the grid: {n} cells along "
+                     f"{f.axis}), got {f.index}", key=("faults", i, "index"))
+            thick = float(self.extent[2])
+            if not abs(f.throw) <= 10 * thick:
+                # a larger throw moves the block past the whole stack: no overlap is left to split,
+                # and ~1e8 m throws leave too few digits for the fault intersections
+                fail(f"must be at most 10 × the stack thickness extent[2] = {thick:g} m in size, got {f.throw:g}",
+                     key=("faults", i, "throw"))
+            if f.name in seen:
+                fail(f"{f.name!r} is given twice; names must differ", key=("faults", i, "name"))
+            seen.add(f.name)
+        return self
+
     @property
     def dim(self) -> int | None:
-        """2 or 3 for a generated mesh, None for a file (known once read)."""
+        """2 or 3 for a generated mesh, 3 for a corner-point grid, None for a Gmsh file (known once read)."""
+        if self.generator in CORNERPOINT:
+            return 3
         return None if self.lower is None else len(self.lower)
 
 
@@ -99,6 +170,8 @@ class Fracture(Table):
     normal: vector((2, 3), "components") | None = Field(None, description="3D: direction of n⁺ (required for a "
                                                         "regular polygon); file meshes: d components")
     group: Text | None = Field(None, description="file meshes: the physical group (default: name)")
+    fault: Text | None = Field(None, description="corner-point grids: the fault selected as this contact "
+                               "surface (default: name); unselected faults stay bonded")
 
     @model_validator(mode="after")
     def _shape(self):
