@@ -17,7 +17,7 @@ def test_help_and_cases(capsys, cli):
     assert "mesh" in capsys.readouterr().out
     code, out, _ = cli("cases")
     assert code == 0
-    assert "frictionless-3d" in out and "dfm-2d" in out and "C4" in out
+    assert "frictionless-3d" in out and "dfm-2d" in out and "poromechanics" in out
 
 
 def test_console_script_entry_point():
