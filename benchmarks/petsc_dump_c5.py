@@ -2,14 +2,15 @@
 
     .venv/bin/python benchmarks/petsc_dump_c5.py [--size 0.047] [--steps 1 2 10 25] [--out benchmarks/out/c5-jacobians]
 
-Runs the poromechanics model through the Python API (``--linear``, default PARDISO) and writes, for every Newton
-iteration of the listed steps, ``J_s<step>_k<iteration>.npz`` (scipy.sparse.save_npz, uncompressed)
-and ``rhs_s<step>_k<iteration>.npy``, plus ``meta.npz`` with what the block solvers are built from
-(n_u, d, n_l, the condensation data c_σ and n⁺, the rigid-body modes; ``pns_*.npy`` the pressure
-near-null space of each system) and ``solves.json`` with the Krylov iterations, wall and CPU
-seconds of each solve in the run. The run goes on to the last listed step (steps in between are solved, not saved), with the
-run's step cutting (a failed step is retried as two halves, whose systems are saved too). Needs the
-main venv (numpy 2 is fine); benchmarks/petsc_solvers.py reads the files in either venv.
+Runs the poromechanics model through the Python API (``--linear``, default PARDISO) and writes, for
+every Newton iteration of the listed steps, ``J_s<step>_k<iteration>.npz`` (scipy.sparse.save_npz,
+uncompressed) and ``rhs_s<step>_k<iteration>.npy``, plus ``meta.npz`` with what the block solvers
+are built from (n_u, d, n_l, the condensation data c_σ and n⁺, the rigid-body modes; ``pns_*.npy``
+the pressure near-null space of each system) and ``solves.json`` with the Krylov iterations, wall
+and CPU seconds of each solve in the run. The run goes on to the last listed step (steps in between
+are solved, not saved), with the run's step cutting (a failed step is retried as two halves, whose
+systems are saved too). Needs the main venv (numpy 2 is fine); benchmarks/petsc_solvers.py reads the
+files in either venv.
 """
 
 from __future__ import annotations

@@ -12,8 +12,9 @@ BoomerAMG (nodal coarsening, rigid-body interpolation), on each number of ranks 
 Reports set-up seconds, iterations, Krylov seconds and peak memory per rank.
 
 ``c5``: the Jacobians saved by benchmarks/petsc_dump_c5.py; BlockPoroSolver (GMRES + pyamg on S, and
-on Ŝ_p PARDISO when pypardiso is installed (the main venv: today's C5 runs), else pyamg) against PetscBlockPoroSolver with GAMG or BoomerAMG on the
-displacement block, and the reuse of the set-up over a step's Newton iterations.
+on Ŝ_p PARDISO when pypardiso is installed (the main venv: today's C5 runs), else pyamg) against
+PetscBlockPoroSolver with GAMG or BoomerAMG on the displacement block, and the reuse of the set-up
+over a step's Newton iterations.
 
 Results: a table on stdout and benchmarks/out/petsc_solvers_<mode>.json.
 """

@@ -14,7 +14,7 @@ Contact (unknowns [u, l])::
     -pc_fieldsplit_schur_precondition selfp          # S = A − Bt blockdiag(Cl̂)⁻¹ Cû, formed by PETSc
     -fieldsplit_l_ksp_type preonly -fieldsplit_l_pc_type pbjacobi   # Cl̂ is block diagonal: exact
     -fieldsplit_u_mat_schur_complement_ainv_type blockdiag
-    -fieldsplit_u_ksp_type preonly -fieldsplit_u_pc_type hypre      # BoomerAMG, rigid-body interpolation
+    -fieldsplit_u_ksp_type preonly -fieldsplit_u_pc_type hypre      # BoomerAMG, nodal coarsening
 
 Splits are named ``l`` (multipliers, eliminated first) and ``u``; with ``fact_type full`` this is
 exactly BlockContactSolver's apply: x_u = S⁻¹(r_u − Bt Cl̂⁻¹ r_l), x_l = Cl̂⁻¹(r_l − Cû x_u).
@@ -29,14 +29,14 @@ fieldsplit with splits ``u`` (AMG on S) and ``p`` (AMG on Ŝ_p, set up once per 
 which is BlockPoroSolver's x_u = S⁻¹(r_u − Bt Cl̂⁻¹ r_l), x_p = Ŝ_p⁻¹(r_p − G_pu x_u),
 x_l = Cl̂⁻¹(r_l − Cû x_u).
 
-The displacement AMG is BoomerAMG (nodal coarsening, interpolation of the rigid-body modes): GAMG
-with the rigid-body near-null space is fast on plain elasticity but its set-up degenerates on these
-blocks, whose bubble dofs (a third of them on small meshes) have zero rows in the rigid-body modes
-(5.7 s instead of 0.05 s on 5k dofs; operator complexity 17), docs/parallel.md. Every option can be overridden through ``options`` (without the
+The displacement AMG is BoomerAMG (nodal coarsening): GAMG with the rigid-body near-null space is fast
+on plain elasticity but its set-up degenerates on these blocks, whose bubble dofs (a third of them on
+small meshes) have zero rows in the rigid-body modes (5.7 s instead of 0.05 s on 5k dofs; operator
+complexity 17), docs/parallel.md. Every option can be overridden through ``options`` (without the
 solver's prefix, ``contact_`` or ``poro_`` by default) or on PETSc's command line with it.
 
-One rank for now: the Python side (Cl̂, Cû, Ŝ_p) is row-local and the PETSc side is not
-(docs/parallel.md says what changes for N ranks).
+One rank for now: PETSc's side is distributable, but Cl̂, Cû and Ŝ_p are computed here from the whole
+J (they are row-local; docs/parallel.md says what changes for N ranks).
 """
 
 from __future__ import annotations
