@@ -228,16 +228,25 @@ class ContactMechanics:
         self._setup_contact()
         self._setup_pattern(J)
         self.solver = solver or LinearSolver("auto")
-        if getattr(self.solver, "backend", None) == "block-amg":
-            self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8)
+        backend = getattr(self.solver, "backend", None)
+        if backend in ("block-amg", "block-petsc"):
+            self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8,
+                                            petsc=backend == "block-petsc", options=self.solver.petsc_options)
         self.newton = newton or NewtonOptions(label="contact Newton")
         self.seconds_setup = time.perf_counter() - t0
         log.info("mechanics: order %d, %d displacement dofs (%d free), %d multipliers, %s bubbles; set up in %.2f s",
                  self.order, self.n_dofs, self.free.size, self.n_ff * d,
                  "two-sided" if data.two_sided else "one-sided", self.seconds_setup)
 
-    def block_solver(self, rtol: float = 1e-8, rho: float = 0.1):
-        """GMRES + AMG on the condensed displacement block (3D sizes), see solvers/block_contact.py."""
+    def block_solver(self, rtol: float = 1e-8, rho: float = 0.1, petsc: bool = False, options=None):
+        """GMRES + AMG on the condensed displacement block (3D sizes), see solvers/block_contact.py;
+        with ``petsc`` the same preconditioner through PETSc's PCFIELDSPLIT (solvers/petsc_fieldsplit.py),
+        tuned by the PETSc ``options`` ([solver.petsc])."""
+        if petsc:
+            from ..solvers.petsc_fieldsplit import PetscBlockContactSolver
+
+            return PetscBlockContactSolver(self.free.size, self.dim, self.condensation(rho),
+                                           near_nullspace=self.rigid_modes(), rtol=rtol, options=options)
         from ..solvers.block_contact import BlockContactSolver
 
         return BlockContactSolver(self.free.size, self.dim, self.condensation(rho), near_nullspace=self.rigid_modes(),

@@ -167,12 +167,15 @@ class Poromechanics:
         self.fm = fm
         self.solver = solver or LinearSolver("auto")
         self.newton = newton or NewtonOptions(label="poromechanics Newton")
-        block = getattr(self.solver, "backend", None) == "block-amg"
+        backend = getattr(self.solver, "backend", None)
+        block = backend in ("block-amg", "block-petsc")
         self.mech = ContactMechanics(fm, mech_data, self.solver, self.newton)
         self.flow = FlowModel(fm, flow_data, flow_boundary, fracture_boundary=fracture_boundary,
                               cell_source=cell_source, fracture_source=fracture_source, alpha=alpha,
                               fracture_alpha=fracture_alpha,
-                              solver=LinearSolver("amg", symmetric=True) if block else self.solver)
+                              solver=(LinearSolver("petsc" if backend == "block-petsc" else "amg", symmetric=True,
+                                                   petsc_options=self.solver.petsc_options)
+                                      if block else self.solver))
         self.dim = fm.mesh.dim
         self.n_ff = fm.network.n_faces
         self.biot = float(flow_data.biot_coefficient)
@@ -340,10 +343,17 @@ class Poromechanics:
         self._bt_vals = Bt.data * beta[Bt.col // d] if Bt.nnz else Bt.data
         self.n_unknowns = n
         self._setup_scaling()
-        if getattr(self.solver, "backend", None) == "block-amg":
+        backend = getattr(self.solver, "backend", None)
+        if backend == "block-amg":
             from ..solvers.block_contact import BlockPoroSolver
 
             self.solver = BlockPoroSolver(nfree, d, nl, self.mech.condensation(), near_nullspace=self.mech.rigid_modes())
+        elif backend == "block-petsc":
+            from ..solvers.petsc_fieldsplit import PetscBlockPoroSolver
+
+            self.solver = PetscBlockPoroSolver(nfree, d, nl, self.mech.condensation(),
+                                               near_nullspace=self.mech.rigid_modes(),
+                                               options=self.solver.petsc_options)
 
     # ---- scaling and step coefficients ----------------------------------------------------
     def _setup_scaling(self):
