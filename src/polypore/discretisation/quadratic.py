@@ -38,6 +38,7 @@ from ..core.errors import InputError
 from ..core.ragged import INDEX, frozen
 from ..mesh import FracturedMesh
 from .faces import side_slots
+from .space import SlotCounts
 from .quadrature import cell_rule, face_rule
 
 # local edges of a simplex, on its sorted cell_nodes
@@ -54,7 +55,7 @@ def _edge_keys(a: np.ndarray, b: np.ndarray, n_nodes: int) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class QuadraticSpace:
+class QuadraticSpace(SlotCounts):
     """Slots of the P2 space on a simplicial fractured mesh.
 
     Attributes
@@ -143,15 +144,6 @@ class QuadraticSpace:
 
     # ---- sizes ----------------------------------------------------------------------------
     @property
-    def dim(self) -> int:
-        return self.fm.mesh.dim
-
-    @property
-    def n_sides(self) -> int:
-        """Node-side slots (the first slots)."""
-        return self.fm.sides.n_sides
-
-    @property
     def n_edge_sides(self) -> int:
         return self.edge_side_edge.size
 
@@ -159,26 +151,6 @@ class QuadraticSpace:
     def n_point_slots(self) -> int:
         """Slots that are point values (node and edge sides); the bubbles follow them."""
         return self.n_sides + self.n_edge_sides
-
-    @property
-    def n_bubbles(self) -> int:
-        return self.bubble_face.size
-
-    @property
-    def n_slots(self) -> int:
-        return self.n_point_slots + self.n_bubbles
-
-    @property
-    def n_dofs(self) -> int:
-        return self.dim * self.n_slots
-
-    def dofs(self, slots: np.ndarray, component: int | None = None) -> np.ndarray:
-        """Global dofs of the given slots: (k, d), or (k,) for one component."""
-        slots = np.asarray(slots, dtype=np.int64)
-        d = self.dim
-        if component is not None:
-            return slots * d + component
-        return slots[:, None] * d + np.arange(d)[None, :]
 
     # ---- points and faces ----------------------------------------------------------------------
     def slot_points(self) -> np.ndarray:

@@ -18,8 +18,42 @@ from ..core.ragged import INDEX, Ragged, frozen
 from ..mesh import FracturedMesh
 
 
+class SlotCounts:
+    """Sizes and dof numbering shared by the displacement spaces: point slots (node sides, and
+    edge sides for P2) first, bubbles after; slot a, component i ↦ dof a·d + i."""
+
+    @property
+    def dim(self) -> int:
+        return self.fm.mesh.dim
+
+    @property
+    def n_sides(self) -> int:
+        """Node-side slots (the first slots)."""
+        return self.fm.sides.n_sides
+
+    @property
+    def n_bubbles(self) -> int:
+        return self.bubble_face.size
+
+    @property
+    def n_slots(self) -> int:
+        return self.n_point_slots + self.n_bubbles
+
+    @property
+    def n_dofs(self) -> int:
+        return self.dim * self.n_slots
+
+    def dofs(self, slots: np.ndarray, component: int | None = None) -> np.ndarray:
+        """Global dofs of the given slots: (k, d), or (k,) for one component."""
+        slots = np.asarray(slots, dtype=np.int64)
+        d = self.dim
+        if component is not None:
+            return slots * d + component
+        return slots[:, None] * d + np.arange(d)[None, :]
+
+
 @dataclass(frozen=True, eq=False)
-class DisplacementSpace:
+class DisplacementSpace(SlotCounts):
     """Slots of the nodal + bubble space and the local slot lists of every cell.
 
     Attributes
@@ -72,38 +106,10 @@ class DisplacementSpace:
                    frozen(cn.counts.astype(INDEX)))
 
     @property
-    def dim(self) -> int:
-        return self.fm.mesh.dim
-
-    @property
-    def n_sides(self) -> int:
-        return self.fm.sides.n_sides
-
-    @property
     def n_point_slots(self) -> int:
         """Slots that are point values (the node sides); the bubbles follow them."""
         return self.n_sides
 
-    @property
-    def n_bubbles(self) -> int:
-        return self.bubble_face.size
-
-    @property
-    def n_slots(self) -> int:
-        return self.n_sides + self.n_bubbles
-
-    @property
-    def n_dofs(self) -> int:
-        return self.dim * self.n_slots
-
     def slot_node(self) -> np.ndarray:
         """(n_sides,) node of every side slot."""
         return self.fm.sides.side_node
-
-    def dofs(self, slots: np.ndarray, component: int | None = None) -> np.ndarray:
-        """Global dofs of the given slots: (k, d), or (k,) for one component."""
-        slots = np.asarray(slots, dtype=np.int64)
-        d = self.dim
-        if component is not None:
-            return slots * d + component
-        return slots[:, None] * d + np.arange(d)[None, :]
