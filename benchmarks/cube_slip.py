@@ -2,8 +2,12 @@
 
     .venv/bin/python benchmarks/cube_slip.py                 # the study (~3 min)
     .venv/bin/python benchmarks/cube_slip.py --diagnose      # what moves the error (~2 min)
-    .venv/bin/python benchmarks/cube_slip.py --reference     # remake the fine-mesh reference (~25 min, 4 GB)
+    .venv/bin/python benchmarks/cube_slip.py --reference --order 2   # remake the reference (~12 min, 3.2 GB)
+    .venv/bin/python benchmarks/cube_slip.py --reference     # the former P1 reference (~25 min, 4 GB)
     .venv/bin/python benchmarks/cube_slip.py --order 2       # quadratic displacements (~15 min)
+    .venv/bin/python benchmarks/cube_slip.py --one out.json --order 2 --set mesh.tip_grading=0.75 ...
+                                                             # one run (mesh.tip_grading: the generator's
+                                                             # exponent, until the case files have the key)
 
 The built-in case ``cube-slip-3d``: unit cube, fracture x ∈ [0.2, 0.8] on y = z,
 y, z ∈ [0.3, 0.7], ymin clamped, ymax displaced by (−2e-4, −2e-4, 0) m, μ = λ_L = 10 GPa,
@@ -12,13 +16,17 @@ its own), with PARDISO. Errors against the reference (cases/reference.py): maxim
 relative L2 of the slip magnitude over the whole fracture and with the 10 % next to every
 edge left out, relative L2 of λ_n with the rim left out, open faces.
 
-``--reference`` runs a sequence of √r-graded meshes (sizes scaled by ``REF_SCALES``),
-extrapolates the maximum slip (Richardson with the rate fitted on the three levels) and
-resamples the finest run's slip and λ_n on a grid of the fracture plane into
-``src/polypore/cases/data/cube-slip-3d-reference.npz``.
+``--reference --order 2`` (the reference in use) runs quadratic displacements on r^(2/3)-graded
+meshes (``REF_P2_*``: tip_grading 2/3, fracture_size and tip_size scaled together, seven levels of
+16k-169k unknowns), evaluates each run's P2 slip on a grid of the fracture plane, extrapolates
+the maximum slip (Richardson with the rate fitted on three levels of scale ratio 2) and the grid
+fields the same way from the two finest, into ``src/polypore/cases/data/cube-slip-3d-reference.npz``
+(``--ref-out`` to write elsewhere); the levels go to ``<out>/cube_slip_reference.json``.
+``--reference`` alone remakes the former P1 reference (√r-graded meshes, sizes scaled by
+``REF_SCALES``, face means resampled), which the P2 runs showed to be 1.6 % low.
 
 ``--order 2`` runs the quadratic space (``MechanicsData.order = 2``, docs/accuracy_3d.md) on its
-own mesh series (``UNIFORM_P2``, ``GRADED_P2``) and the case's default mesh with order 1 for
+own mesh series (``UNIFORM_P2``, ``GRADED_P2``, ``GRADED_P2_34``) and the case's default mesh with order 1 for
 comparison. The case file has no key for the order, so each of these runs builds the case
 through the setup API in a separate process of this script (``--one``): wall time (mesh, set-up,
 solve; no output files) and peak memory are again the run's own. The maximum slip of the graded
@@ -31,13 +39,16 @@ Writes ``<out>/cube_slip.json``, ``<out>/cube_slip.md`` and ``<out>/cube_slip.pn
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
+import functools
 import json
 import subprocess
 import sys
 import tempfile
 import tomllib
 from pathlib import Path
+from unittest import mock
 
 import numpy as np
 import tomli_w
@@ -65,6 +76,11 @@ REF_SCALES = [0.33, 0.25, 0.2]
 UNIFORM_P2 = [0.15, 0.1, 0.07, 0.05, 0.035]
 GRADED_P2 = [1.6, 1.25, 1.0, 0.8, 0.63, 0.5]
 P2_SIZES = (0.5, 0.3, 0.025)       # (size, fracture_size, tip_size) at scale 1, m
+# order 2 on r^(3/4)-graded meshes (mesh.tip_grading = 0.75): the size law covers the cube, the bulk
+# size 5 m is never reached (it must exceed fracture_size for the generator to grade at all);
+# (fracture_size, tip_size) scaled together, a family independent of the reference's r^(2/3) one
+GRADED_P2_34 = [1.41, 1.0, 0.707, 0.5]
+P2_34_SIZES = (5.0, 2.5, 0.025, 0.75)   # (size, fracture_size, tip_size, tip_grading) at scale 1
 
 
 def graded_p2(scale: float) -> list[str]:
@@ -72,8 +88,26 @@ def graded_p2(scale: float) -> list[str]:
             f"mesh.tip_size={P2_SIZES[2] * scale:.6g}"]
 
 
+def graded_p2_34(scale: float) -> list[str]:
+    return [f"mesh.size={P2_34_SIZES[0]:.6g}", f"mesh.fracture_size={P2_34_SIZES[1] * scale:.6g}",
+            f"mesh.tip_size={P2_34_SIZES[2] * scale:.6g}", f"mesh.tip_grading={P2_34_SIZES[3]:g}"]
+
+
 def uniform_p2(h: float) -> list[str]:
     return [f"mesh.size={P2_SIZES[0]:.6g}", f"mesh.fracture_size={h}", "mesh.tip_size=1e9"]
+
+
+# the order-2 reference: r^γ-graded meshes, (fracture_size, tip_size) scaled together (for γ = 3/4
+# the balanced family: the cell count grows like 1/scale, compliance-type errors fall like scale)
+REF_P2_GRADING = 2 / 3
+REF_P2_SIZES = (3.0, 2.5, 0.025)   # (size, fracture_size, tip_size) at scale 1, m
+REF_P2_SCALES = [1.0, 0.707, 0.5, 0.354, 0.25, 0.177, 0.125]
+REF_P2_FIT = (0.5, 0.25, 0.125)
+
+
+def graded_ref_p2(scale: float) -> list[str]:
+    return [f"mesh.size={REF_P2_SIZES[0]:.6g}", f"mesh.fracture_size={REF_P2_SIZES[1] * scale:.6g}",
+            f"mesh.tip_size={REF_P2_SIZES[2] * scale:.6g}", f"mesh.tip_grading={REF_P2_GRADING:.6g}"]
 
 
 def graded(scale: float) -> list[str]:
@@ -106,20 +140,112 @@ def run(case: Path, overrides: list[str], workdir: Path, tag: str) -> dict:
     return {"summary": summary, "X": X, "slip": slip, "lambda_n": col("lambda_n"), "area": area}
 
 
-def run_one(order: int, overrides: list[str], workdir: Path, tag: str) -> dict:
-    """One in-process run of the case at the given order, in its own process (``--one``)."""
+def run_one(order: int, overrides: list[str], workdir: Path, tag: str, case: Path = CASE,
+            field: bool = False) -> dict:
+    """One in-process run of the case at the given order, in its own process (``--one``); with
+    ``field``, the run's slip field is in ``<workdir>/<tag>.npz``."""
     out = workdir / f"{tag}.json"
-    cmd = [sys.executable, str(Path(__file__).resolve()), "--one", str(out), "--order", str(order)]
+    cmd = [sys.executable, str(Path(__file__).resolve()), "--one", str(out), "--order", str(order),
+           "--case", str(case)]
+    if field:
+        cmd += ["--field", str(workdir / f"{tag}.npz")]
     for o in overrides + ["solver.linear=pardiso"]:
         cmd += ["--set", o]
     subprocess.run(cmd, check=True)
     return json.loads(out.read_text())
 
 
-def one(path: Path, order: int, overrides: list[str], case_name: str = str(CASE)) -> None:
+def reference_grid(n: int = 121) -> tuple[np.ndarray, np.ndarray]:
+    """The grid of the reference file (cases/reference.py ``resample``): a along E1, b along E2."""
+    La, Lb = LENGTHS
+    return np.linspace(0.0, La, n), np.linspace(0.0, Lb, int(round(n * Lb / La)) | 1)
+
+
+def p2_jump_on_grid(problem, u: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The P2 jump [[u]](x) (na, nb, 3) at the points ORIGIN + a E1 + b E2 of the fracture: each
+    point located in its fracture face, the traces of both sides and the face bubble evaluated
+    there (the field of ``QuadraticSpace.jump_quadrature`` at arbitrary points). Edge points
+    are moved 1e-9 m inside."""
+    import scipy.sparse as sparse
+    from matplotlib.tri import Triangulation
+
+    from polypore.discretisation.quadratic import BUBBLE_SCALE, FACE_EDGES
+
+    space, mesh, net = problem.space, problem.fm.mesh, problem.fm.network
+    F = mesh.face_nodes.values.reshape(mesh.n_faces, 3)[net.faces]                # (n_ff, 3)
+    used, local = np.unique(F, return_inverse=True)
+    R = mesh.nodes[used] - ORIGIN
+    P = np.stack([R @ E1, R @ E2], axis=1)
+    tri = Triangulation(P[:, 0], P[:, 1], local.reshape(F.shape))
+    A, B = np.meshgrid(np.clip(a, 1e-9, LENGTHS[0] - 1e-9), np.clip(b, 1e-9, LENGTHS[1] - 1e-9), indexing="ij")
+    x, y = A.ravel(), B.ravel()
+    k = tri.get_trifinder()(x, y)
+    if np.any(k < 0):
+        raise RuntimeError(f"{int(np.sum(k < 0))} grid points outside the fracture triangulation")
+    T = P[local.reshape(F.shape)[k]]                                             # (n, 3, 2)
+    M = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], axis=2)                # (n, 2, 2)
+    l12 = np.linalg.solve(M, (np.stack([x, y], axis=1) - T[:, 0])[..., None])[..., 0]
+    L = np.column_stack([1.0 - l12.sum(axis=1), l12])                           # face_nodes order
+    fe = FACE_EDGES[3]
+    phi = np.concatenate([L * (2 * L - 1), 4 * L[:, fe[:, 0]] * L[:, fe[:, 1]]], axis=1)   # (n, 6)
+    jump = np.zeros((x.size, 3))
+    for cells, sign in ((net.plus_cell, 1.0), (net.minus_cell, -1.0)):
+        vs, es = space.face_slots(net.faces[k], cells[k])
+        slots = np.concatenate([vs, es], axis=1)
+        jump += sign * np.einsum("nj,njc->nc", phi, u[slots])
+    Bm = sparse.csr_array((space.bubble_sign.astype(float),
+                           (space.bubble_face, space.n_point_slots + np.arange(space.n_bubbles))),
+                          shape=(net.n_faces, space.n_slots))
+    jump += (BUBBLE_SCALE * np.prod(L, axis=1))[:, None] * (Bm @ u)[k]
+    return jump.reshape(a.size, b.size, 3)
+
+
+@contextlib.contextmanager
+def _tip_grading(overrides: list[str]):
+    """Overrides without ``mesh.tip_grading=γ``, and the simplicial generator called with that
+    exponent while the context lasts (the case files have no such key yet)."""
+    keep = [o for o in overrides if not o.startswith("mesh.tip_grading=")]
+    given = [o.split("=", 1)[1] for o in overrides if o.startswith("mesh.tip_grading=")]
+    if not given:
+        yield keep
+        return
+    from polypore.mesh.generators import simplicial
+
+    with mock.patch.object(simplicial, "simplicial_mesh",
+                           functools.partial(simplicial.simplicial_mesh, tip_grading=float(given[-1]))):
+        yield keep
+
+
+def _penny_field_errors(exact, X, W, q, n) -> dict:
+    """Relative L2 errors of the P2 opening and slip as fields (values q (m, 3) at the points X of a face
+    rule with weights W, normals n) against the penny-shaped crack's analytic ones at those points:
+    over the crack, and with the outer 10 % of the radius left out (r ≤ 0.9 a, by point)."""
+    from polypore.cases.penny_exact import RIM as PENNY_RIM
+
+    r = exact.radial(X)
+    away = r <= PENNY_RIM * exact.radius
+    qn = np.einsum("fi,fi->f", q, n)
+    out = {}
+
+    def rel(x, x_ex, m):
+        return float(np.sqrt(np.sum((W * (x - x_ex) ** 2)[m]) / np.sum((W * x_ex ** 2)[m])))
+
+    every = np.ones(r.size, bool)
+    for name, amp, comp, ex in (("opening", exact.opening_amplitude, -qn, exact.opening),
+                                ("slip", exact.slip_amplitude, np.linalg.norm(q - qn[:, None] * n, axis=1),
+                                 exact.slip)):
+        if amp > 0:
+            out |= {f"{name}_L2_rel": rel(comp, ex(r), every), f"{name}_L2_rel_away_from_rim": rel(comp, ex(r), away),
+                    f"{name}_mean_rel": float(np.sum(W * comp) / np.sum(W * ex(r)) - 1)}
+    return out
+
+
+def one(path: Path, order: int, overrides: list[str], case_name: str = str(CASE), field: Path | None = None) -> None:
     """Mesh, set up and solve a static case (default: the cube) with ``MechanicsData.order = order``;
     write a summary.json-like record (unknowns, cells, seconds, peak_memory_mb, newton, errors)
-    to ``path``."""
+    to ``path``. ``mesh.tip_grading=γ`` among the overrides sets the generator's tip-grading
+    exponent. With ``field``, also save the slip at the points of a face rule (order 2; the face
+    centroids for order 1) and λ_n at the face centroids there (.npz), for a reference."""
     import dataclasses
     import resource
     import time
@@ -136,12 +262,13 @@ def one(path: Path, order: int, overrides: list[str], case_name: str = str(CASE)
     from polypore.models.mechanics import ContactMechanics
 
     t0 = time.perf_counter()
-    case = load_case(case_name, overrides)
-    fm = build_fractured_mesh(case)
+    with _tip_grading(overrides) as ov:
+        case = load_case(case_name, ov)
+        fm = build_fractured_mesh(case)
     setup = mechanics_setup(case, fm)
     problem = ContactMechanics(fm, dataclasses.replace(setup.data, order=order), setup.solver, setup.newton)
     st = problem.solve(verbose=False)
-    errors = setup.exact.errors(problem, st)
+    errors = setup.exact.errors(problem, st) if setup.exact is not None else {}
     seconds = time.perf_counter() - t0
     q = problem.jumps(st)
     qt = q - np.einsum("fi,fi->f", q, problem.normal)[:, None] * problem.normal
@@ -151,7 +278,9 @@ def one(path: Path, order: int, overrides: list[str], case_name: str = str(CASE)
                       "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0},
            "steps": [{"newton_iterations": st.newton_iterations}], "errors": errors, "order": order,
            "slip_integral": float(np.linalg.norm(problem.face_area @ qt))}
-    if order == 2 and hasattr(setup.exact, "errors_of"):
+    ln_face = np.einsum("fi,fi->f", st.lam, problem.normal)
+    Xc = fm.mesh.geometry.face_centroid[fm.network.faces]
+    if order == 2:
         # the P2 slip as a field: its values at the points of a face rule (6 per face) against the
         # reference there, weighted by the rule (the face-mean errors above compare P0 face means
         # with point values, which costs O(h²) by itself on coarse fracture meshes)
@@ -159,9 +288,31 @@ def one(path: Path, order: int, overrides: list[str], case_name: str = str(CASE)
         nq = W.size // max(problem.n_ff, 1)
         n = np.repeat(problem.normal, nq, axis=0)
         q = Jq @ st.u
-        qt = q - np.einsum("fi,fi->f", q, n)[:, None] * n
-        ln = np.repeat(np.einsum("fi,fi->f", st.lam, problem.normal), nq)
-        rec["field_errors"] = setup.exact.errors_of(X, W, qt, ln, np.repeat(st.state == OPEN, nq))
+        qt_q = q - np.einsum("fi,fi->f", q, n)[:, None] * n
+        rec["field_max_slip"] = float(np.linalg.norm(qt_q, axis=1).max(initial=0.0))
+        if hasattr(setup.exact, "errors_of"):
+            ln = np.repeat(ln_face, nq)
+            rec["field_errors"] = setup.exact.errors_of(X, W, qt_q, ln, np.repeat(st.state == OPEN, nq))
+        elif hasattr(setup.exact, "opening_amplitude"):
+            rec["field_errors"] = _penny_field_errors(setup.exact, X, W, q, n)
+    else:
+        X, qt_q = Xc, qt
+    if field is not None:
+        # the slip on the reference grid: the P2 field there (order 2), or the face means
+        # interpolated as the reference of order 1 did; λ_n (P0) interpolated from the centroids
+        from polypore.cases.reference import resample
+
+        a, b = reference_grid()
+        arr = resample(Xc, qt, ln_face, ORIGIN, E1, E2, LENGTHS, n=a.size)
+        if order == 2:
+            g = p2_jump_on_grid(problem, st.u, a, b)
+            n = np.array([0.0, 1.0, -1.0]) / np.sqrt(2.0)
+            arr["slip"] = g - (g @ n)[..., None] * n
+            arr["slip"][[0, -1]] = 0.0
+            arr["slip"][:, [0, -1]] = 0.0
+        rec["grid_max_slip"] = float(np.linalg.norm(arr["slip"], axis=2).max())
+        np.savez_compressed(field, X=X, slip_points=qt_q, Xc=Xc, lambda_n_faces=ln_face, area=problem.face_area,
+                            **arr)
     path.write_text(json.dumps(rec))
 
 
@@ -225,6 +376,145 @@ def make_reference(workdir: Path):
     print(f"wrote {REF}")
 
 
+def _grid_integral(a, b, slip) -> float:
+    """|∫_Γ [[u]]_τ| (m³) of a slip field on the reference grid (trapezoid rule)."""
+    return float(np.linalg.norm(np.trapezoid(np.trapezoid(slip, b, axis=1), a, axis=0)))
+
+
+def make_reference_p2(workdir: Path, path: Path = REF, out: Path = ROOT / "docs"):
+    """Quadratic displacements on r^γ-graded meshes (γ = REF_P2_GRADING), (fracture_size, tip_size)
+    scaled together by REF_P2_SCALES (the balanced family: compliance-type errors ∝ scale ∝
+    1/unknowns); the P2 slip evaluated on the reference grid. The maximum slip and the grid fields
+    are extrapolated with the rate fitted on the levels REF_P2_FIT (scale ratio 2: Richardson
+    weight 1/(2^p − 1)); every level is reported (and recorded in ``<out>/cube_slip_reference.json``),
+    and reused from ``workdir`` if there."""
+    case = _case_without_reference(workdir)
+    levels = []
+    for sc in REF_P2_SCALES:
+        tag = f"ref2-{sc:g}"
+        if (workdir / f"{tag}.json").is_file() and (workdir / f"{tag}.npz").is_file():
+            rec = json.loads((workdir / f"{tag}.json").read_text())
+        else:
+            rec = run_one(2, graded_ref_p2(sc), workdir, tag, case=case, field=True)
+        with np.load(workdir / f"{tag}.npz") as z:
+            arr = {k: z[k] for k in ("origin", "e1", "e2", "a", "b", "slip", "lambda_n")}
+        m = float(np.linalg.norm(arr["slip"], axis=2).max())
+        integral = _grid_integral(arr["a"], arr["b"], arr["slip"])
+        print(f"reference level scale {sc:g}: {rec['mesh']['unknowns']} unknowns, max slip {m:.6e} m, "
+              f"∫ slip {integral:.6e} m³, {rec['totals']['seconds']:.0f} s, "
+              f"{rec['totals']['peak_memory_mb']:.0f} MB", flush=True)
+        levels.append({"scale": sc, "max": m, "integral": integral, "arrays": arr,
+                       "unknowns": rec["mesh"]["unknowns"], "seconds": rec["totals"]["seconds"],
+                       "memory": rec["totals"]["peak_memory_mb"]})
+    fit_levels = [lv for lv in levels if lv["scale"] in REF_P2_FIT]
+    s3 = [lv["scale"] for lv in fit_levels]
+    fit = richardson(s3, [lv["max"] for lv in fit_levels])
+    fit_int = richardson(s3, [lv["integral"] for lv in fit_levels])
+    if fit is None:
+        raise SystemExit("the maximum slips of the fit levels do not converge monotonically with a rate in [0.2, 4]")
+    m_star, p, w = fit
+    print(f"maximum slip: limit {m_star:.6e} m, rate {p:.3f}, weight {w:.3f}")
+    if fit_int:
+        print(f"∫ slip: limit {fit_int[0]:.6e} m³, rate {fit_int[1]:.3f}")
+    # the rate-p fit through every level (least squares on m* and C with p fixed), as a check
+    S = np.array([lv["scale"] for lv in levels]) ** p
+    for key in ("max", "integral"):
+        coef, *_ = np.linalg.lstsq(np.column_stack([np.ones_like(S), -S]), [lv[key] for lv in levels], rcond=None)
+        print(f"{key}: least squares over all {len(levels)} levels with rate {p:.3f}: limit {coef[0]:.6e}")
+    a1, a2 = fit_levels[1]["arrays"], fit_levels[2]["arrays"]
+    arrays = {**a2, "slip": a2["slip"] + w * (a2["slip"] - a1["slip"]),
+              "lambda_n": a2["lambda_n"] + w * (a2["lambda_n"] - a1["lambda_n"])}
+    ext_int = _grid_integral(arrays["a"], arrays["b"], arrays["slip"])
+    ext_max = float(np.linalg.norm(arrays["slip"], axis=2).max())
+    print(f"extrapolated grid field: max {ext_max:.6e} m, ∫ slip {ext_int:.6e} m³")
+    maxima = [lv["max"] for lv in fit_levels]
+    note = (f"quadratic displacements (order 2) on r^{REF_P2_GRADING:.3g}-graded tetrahedra (tip_grading "
+            f"{REF_P2_GRADING:.3g}), (size, fracture_size, tip_size) = ({REF_P2_SIZES[0]:g}, {REF_P2_SIZES[1]:g} s, "
+            f"{REF_P2_SIZES[2]:g} s) m, s = {', '.join(f'{x:g}' for x in s3)} "
+            f"({', '.join(str(lv['unknowns']) for lv in fit_levels)} unknowns); P2 slip on the grid, "
+            f"maximum slips {', '.join(f'{m:.5e}' for m in maxima)} m, fitted rate {p:.2f}, "
+            f"extrapolated {m_star:.5e} m; slip and λ_n fields extrapolated the same way from the two finest "
+            f"levels (benchmarks/cube_slip.py --reference --order 2)")
+    print(note)
+    np.savez_compressed(path, **{k: np.asarray(v, np.float64) for k, v in arrays.items()}, max_slip=m_star,
+                        note=note)
+    summary = {"levels": [{k: v for k, v in lv.items() if k != "arrays"} for lv in levels],
+               "fit": {"max_slip": m_star, "rate": p, "weight": w,
+                       "integral": fit_int[0] if fit_int else None, "integral_rate": fit_int[1] if fit_int else None},
+               "extrapolated_grid": {"max": ext_max, "integral": ext_int}, "note": note}
+    (out / "cube_slip_reference.json").write_text(json.dumps(summary, indent=1))
+    print(f"wrote {path} and {out / 'cube_slip_reference.json'}")
+
+
+def _ref_p2_34(scale: float) -> list[str]:
+    return [f"mesh.size={REF_P2_SIZES[0]:.6g}", f"mesh.fracture_size={2.5 * scale:.6g}",
+            f"mesh.tip_size={0.025 * scale:.6g}", "mesh.tip_grading=0.75"]
+
+
+# independent P2 mesh families checking the reference: two levels each, scale ratio 2
+VALIDATION = {"sqrt": ("√r-graded (tip_grading 0.5, P2_SIZES)", (0.8, 0.4), graded_p2),
+              "r34": ("r^(3/4)-graded (tip_grading 0.75, size 3, (2.5, 0.025) m × s)", (0.5, 0.25), _ref_p2_34),
+              "fr": ("fracture-refined (h, no tip grading, bulk 0.5)", (0.05, 0.025), uniform_p2)}
+
+
+def _grid_l2(m, m_ref, a, b, inner: bool) -> float:
+    """Relative L2 difference of two fields on the reference grid (whole fracture, or rim out)."""
+    from polypore.cases.reference import RIM
+
+    A, B = np.meshgrid(a / a[-1], b / b[-1], indexing="ij")
+    w = np.outer(np.gradient(a), np.gradient(b))
+    k = ((A > RIM) & (A < 1 - RIM) & (B > RIM) & (B < 1 - RIM)) if inner else np.ones(A.shape, bool)
+    return float(np.sqrt(np.sum((w * (m - m_ref) ** 2)[k]) / np.sum((w * m_ref ** 2)[k])))
+
+
+def validate_reference(workdir: Path, out: Path):
+    """Each VALIDATION family's two levels extrapolated with rate 1 (Richardson weight 1) against the
+    reference file: maximum slip, ∫ slip, L2 differences of the slip and λ_n fields on its grid.
+    Runs reused from ``workdir``; the table is added to ``<out>/cube_slip_reference.json``."""
+    from polypore.cases.reference import load_reference
+
+    ref = load_reference("cube-slip-3d")
+    m_ref = np.linalg.norm(ref.slip, axis=2)
+    ref_int = _grid_integral(ref.a, ref.b, ref.slip)
+    rows = []
+    for key, (label, params, make) in VALIDATION.items():
+        fields = []
+        for par in params:
+            tag = f"val-{key}-{par:g}"
+            if (workdir / f"{tag}.json").is_file() and (workdir / f"{tag}.npz").is_file():
+                rec = json.loads((workdir / f"{tag}.json").read_text())
+            else:
+                rec = run_one(2, make(par), workdir, tag, field=True)
+            with np.load(workdir / f"{tag}.npz") as z:
+                fields.append((rec["mesh"]["unknowns"], z["slip"], z["lambda_n"]))
+        (n1, s1, l1), (n2, s2, l2) = fields
+        slip, ln = 2 * s2 - s1, 2 * l2 - l1
+        m = np.linalg.norm(slip, axis=2)
+        row = {"family": label, "parameters": list(params), "unknowns": [n1, n2],
+               "max_slip": float(m.max()), "max_slip_vs_reference": float(m.max() / ref.max_slip - 1),
+               "slip_integral": _grid_integral(ref.a, ref.b, slip),
+               "slip_integral_vs_reference": _grid_integral(ref.a, ref.b, slip) / ref_int - 1,
+               "slip_L2_diff": _grid_l2(m, m_ref, ref.a, ref.b, False),
+               "slip_L2_diff_inner": _grid_l2(m, m_ref, ref.a, ref.b, True),
+               "lambda_n_L2_diff_inner": _grid_l2(ln, ref.lambda_n, ref.a, ref.b, True),
+               "finest_level": {"slip_L2": _grid_l2(np.linalg.norm(s2, axis=2), m_ref, ref.a, ref.b, False),
+                                "slip_L2_inner": _grid_l2(np.linalg.norm(s2, axis=2), m_ref, ref.a, ref.b, True),
+                                "max_slip_error": float(np.linalg.norm(s2, axis=2).max() / ref.max_slip - 1)}}
+        rows.append(row)
+        print(f"{label}: {n1}, {n2} unknowns → max slip {row['max_slip']:.5e} "
+              f"({100 * row['max_slip_vs_reference']:+.2f} %), "
+              f"∫ slip {row['slip_integral']:.5e} ({100 * row['slip_integral_vs_reference']:+.2f} %), slip L2 "
+              f"{100 * row['slip_L2_diff']:.2f} %, rim out {100 * row['slip_L2_diff_inner']:.2f} %, λ_n rim out "
+              f"{100 * row['lambda_n_L2_diff_inner']:.2f} %", flush=True)
+    path = out / "cube_slip_reference.json"
+    summary = json.loads(path.read_text()) if path.is_file() else {}
+    summary["validation"] = {"method": "each family's two levels extrapolated with rate 1 (X* = 2 X2 − X1), "
+                                       "compared with the reference on its grid", "reference_integral": ref_int,
+                             "families": rows}
+    path.write_text(json.dumps(summary, indent=1))
+    print(f"wrote {path}")
+
+
 def study(workdir: Path, out: Path, quick: bool, order: int = 1):
     if order == 1:
         series = {"uniform": [(h, uniform(h)) for h in (UNIFORM[:3] if quick else UNIFORM)],
@@ -234,7 +524,9 @@ def study(workdir: Path, out: Path, quick: bool, order: int = 1):
     else:
         series = {"order 1, tip-graded": [(sc, graded(sc)) for sc in GRADED[2:]],
                   "order 2, fracture-refined": [(h, uniform_p2(h)) for h in (UNIFORM_P2[:3] if quick else UNIFORM_P2)],
-                  "order 2, tip-graded": [(sc, graded_p2(sc)) for sc in (GRADED_P2[:3] if quick else GRADED_P2)]}
+                  "order 2, tip-graded": [(sc, graded_p2(sc)) for sc in (GRADED_P2[:3] if quick else GRADED_P2)],
+                  "order 2, r^(3/4)-graded": [(sc, graded_p2_34(sc))
+                                              for sc in (GRADED_P2_34[:3] if quick else GRADED_P2_34)]}
         stem = "cube_slip_p2"
     keys = ("max_slip_error_rel", "slip_L2_rel", "slip_L2_rel_inner", "lambda_n_L2_rel_inner")
     results = {}
@@ -260,33 +552,43 @@ def study(workdir: Path, out: Path, quick: bool, order: int = 1):
         rates = ({k: float(-np.polyfit(np.log(n), np.log([r[k] for r in rows]), 1)[0]) for k in keys}
                  if len(rows) > 1 else {})
         results[name] = {"runs": rows, "rates_per_unknown": rates}
+    (out / f"{stem}.json").write_text(json.dumps({"series": results}, indent=1))
+    report(out, stem, order)
+
+
+def _limit(runs, key) -> dict | None:
+    """The limit of ``key`` over a series' levels (parameter → 0): with rate 1 from the two finest
+    (the crack-front cells, of size ∝ the parameter in every family here, leave an error ∝ the
+    parameter in compliance-type quantities: docs/accuracy_3d.md), and with the rate fitted on the
+    three finest (None if not monotone)."""
+    if len(runs) < 3 or any(r.get(key) is None for r in runs):
+        return None
+    (s1, m1), (s2, m2) = [(r["parameter"], r[key]) for r in runs[-2:]]
+    fit = richardson([r["parameter"] for r in runs[-3:]], [r[key] for r in runs[-3:]])
+    return {"finest": m2, "limit_rate1": m2 + s2 / (s1 - s2) * (m2 - m1),
+            "limit": fit[0] if fit else None, "rate": fit[1] if fit else None}
+
+
+def report(out: Path, stem: str, order: int):
+    """Limits, table and plot from ``<out>/<stem>.json`` against the current reference (``--report``
+    redoes them without running anything)."""
     from polypore.cases.reference import load_reference
 
+    data = json.loads((out / f"{stem}.json").read_text())
+    results = data["series"]
     ref = load_reference("cube-slip-3d")
-    # |∫_Γ [[u]]_τ| of the reference (trapezoid rule on its grid) and of each series extrapolated
-    # from its three finest levels: the limits compared without sampling the slip at points
+    # |∫_Γ [[u]]_τ| of the reference (trapezoid rule on its grid) and of each series extrapolated,
+    # and the P2 maximum slip (point values) extrapolated: the limits compared directly
     ref_int = float(np.linalg.norm(np.trapezoid(np.trapezoid(ref.slip, ref.b, axis=1), ref.a, axis=0)))
-    extra = {"slip_integral": {"reference": ref_int}}
+    extra = {"slip_integral": {"reference": ref_int}, "p2_limit": {}}
     for name, res in results.items():
-        runs = res["runs"][-3:]
-        fit = richardson([r["parameter"] for r in runs], [r["slip_integral"] for r in runs]) if len(runs) == 3 else None
-        extra["slip_integral"][name] = ({"finest": runs[-1]["slip_integral"], "limit": fit[0], "rate": fit[1],
-                                         "vs_reference_rel": fit[0] / ref_int - 1} if fit else None)
+        extra["slip_integral"][name] = _limit(res["runs"], "slip_integral")
+        if order == 2 and name.startswith("order 2"):
+            extra["p2_limit"][name] = _limit(res["runs"], "field_max_slip")
     print("slip integrals:", extra["slip_integral"])
-    if order == 2:
-        # the limit of the P2 maximum slip (its point values, which converge monotonically; the
-        # face means are not monotone on these meshes) from each series' three finest levels
-        extra["p2_limit"] = {}
-        for name in ("order 2, fracture-refined", "order 2, tip-graded"):
-            runs = results[name]["runs"][-3:]
-            fit = (richardson([r["parameter"] for r in runs], [r["field_max_slip"] for r in runs])
-                   if len(runs) == 3 else None)
-            extra["p2_limit"][name] = ({"max_slip": fit[0], "rate": fit[1],
-                                        "vs_reference_rel": (fit[0] - ref.max_slip) / ref.max_slip} if fit else None)
-        print("P2 maximum-slip limits:", extra["p2_limit"])
     (out / f"{stem}.json").write_text(json.dumps({"reference": {"max_slip": ref.max_slip, "note": ref.note},
                                                   "series": results, **extra}, indent=1))
-    _table(out / f"{stem}.md", results, ref, order, extra.get("p2_limit"), extra["slip_integral"])
+    _table(out / f"{stem}.md", results, ref, order, extra["p2_limit"], extra["slip_integral"])
     _plot(out / f"{stem}.png", results)
     print(f"wrote {out / stem}.json, .md, .png")
 
@@ -359,25 +661,35 @@ def _table(path, results, ref, order=1, limit=None, integrals=None):
                      f"fracture_size h (m, bulk size {P2_SIZES[0]} m, no tip grading) for the fracture-refined "
                      "P2 meshes; "
                      f"the scale of (fracture_size, tip_size) = {P2_SIZES[1:]} m (bulk size {P2_SIZES[0]} m) for the "
-                     "tip-graded ones. Rates are −d log(error)/d log(unknowns). Wall: mesh, set-up and solve. "
+                     "tip-graded ones (√r law, mesh.tip_grading 0.5, the generator's default); the scale of "
+                     f"(fracture_size, tip_size) = {P2_34_SIZES[1:3]} m (bulk size {P2_34_SIZES[0]:g} m, never "
+                     "reached) "
+                     f"with mesh.tip_grading = {P2_34_SIZES[3]} for the r^(3/4)-graded ones. "
+                     "Rates are −d log(error)/d log(unknowns). Wall: mesh, set-up and solve. "
                      "\"field\": the P2 slip at the 6 points of a face rule per fracture face (its maximum, and "
                      "L2 norms by that rule) instead of the face means.")
     integrals = integrals or {}
     if len(integrals) > 1:
-        lines += ["", "Slip integrals and maxima extrapolated with the rate fitted on three levels; a fitted rate "
-                  "below 1 means the levels are not asymptotic yet (docs/accuracy_3d.md discusses the limits)."]
+        lines += ["", "Limits of each series (parameter → 0): with rate 1 in the parameter from the two finest "
+                  "levels (the error the crack-front cells leave, docs/accuracy_3d.md), and with the rate fitted on the "
+                  "three finest (noisy: every level is a new unstructured mesh)."]
+
+    def lim_text(lim, scale, unit, refv):
+        if not lim:
+            return "too few levels."
+        t = (f"{scale * lim['finest']:.4f}{unit} on the finest mesh; rate 1: {scale * lim['limit_rate1']:.4f}{unit} "
+             f"({100 * (lim['limit_rate1'] / refv - 1):+.2f} %)")
+        if lim["limit"] is not None:
+            t += (f"; fitted rate {lim['rate']:.2f}: {scale * lim['limit']:.4f}{unit} "
+                  f"({100 * (lim['limit'] / refv - 1):+.2f} %)")
+        return t + " from the reference's " + f"{scale * refv:.4f}{unit}."
+
     for name, lim in integrals.items():
-        if name != "reference" and lim:
-            lines += ["", f"{name}: |∫_Γ [[u]]_τ| = {1e6 * lim['finest']:.4f}e-6 m³ on the finest mesh, "
-                      f"extrapolated {1e6 * lim['limit']:.4f}e-6 m³ (fitted rate {lim['rate']:.2f}), "
-                      f"{100 * lim['vs_reference_rel']:+.2f} % from the reference's "
-                      f"{1e6 * integrals['reference']:.4f}e-6 m³."]
+        if name != "reference":
+            lines += ["", f"{name}: |∫_Γ [[u]]_τ| = " + lim_text(lim, 1e6, "e-6 m³", integrals["reference"])]
     if order == 2:
         for name, lim in (limit or {}).items():
-            lines += ["", f"{name}: maximum slip (point values) extrapolated to h → 0 from the three finest levels: "
-                      + (f"{1e5 * lim['max_slip']:.4f}e-5 m (fitted rate {lim['rate']:.2f} in the mesh parameter), "
-                         f"{100 * lim['vs_reference_rel']:+.2f} % from the reference's {1e5 * ref.max_slip:.4f}e-5 m."
-                         if lim else "not monotone, no extrapolation.")]
+            lines += ["", f"{name}: maximum slip (point values) = " + lim_text(lim, 1e5, "e-5 m", ref.max_slip)]
     path.write_text("\n".join(lines) + "\n")
 
 
@@ -388,7 +700,7 @@ def _plot(path, results):
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 2, figsize=(10, 4.2))
-    for (name, res), mk, c in zip(results.items(), ("s--", "o-", "^-"), ("C0", "C1", "C2")):
+    for (name, res), mk, c in zip(results.items(), ("s--", "o-", "^-", "v-"), ("C0", "C1", "C2", "C3")):
         n = [r["unknowns"] for r in res["runs"]]
         axes[0].loglog(n, [100 * r["max_slip_error_rel"] for r in res["runs"]], mk, color=c, label=name)
         axes[1].loglog(n, [100 * r["slip_L2_rel_inner"] for r in res["runs"]], mk, color=c, label=name)
@@ -427,19 +739,32 @@ def main():
     ap.add_argument("--one", metavar="JSON", help="internal: one in-process run of the case, record to JSON")
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE", help="with --one: case overrides")
     ap.add_argument("--case", default=str(CASE), help="with --one: another built-in static case (e.g. penny-inclined)")
+    ap.add_argument("--field", metavar="NPZ", help="with --one: also save the slip field (for a reference)")
     ap.add_argument("--out", default=str(ROOT / "docs"))
+    ap.add_argument("--validate", action="store_true", help="with --reference --order 2: check the reference "
+                    "against three other P2 mesh families (~10 min)")
+    ap.add_argument("--report", action="store_true", help="redo the table and plot of <out>/cube_slip[_p2].json "
+                    "(with --order 2) against the current reference, without running")
+    ap.add_argument("--ref-out", default=str(REF), help="with --reference --order 2: where to write the reference")
     ap.add_argument("--workdir", help="keep the runs here (default: a temporary folder)")
     args = ap.parse_args()
     if args.one:
-        one(Path(args.one), args.order, args.set, args.case)
+        one(Path(args.one), args.order, args.set, args.case, Path(args.field) if args.field else None)
         return
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(prefix="cube-slip-") as tmp:
         work = Path(args.workdir or tmp)
         work.mkdir(parents=True, exist_ok=True)
-        if args.reference:
-            make_reference(work)
+        if args.report:
+            report(out, "cube_slip" if args.order == 1 else "cube_slip_p2", args.order)
+        elif args.reference:
+            if args.order == 2 and args.validate:
+                validate_reference(work, out)
+            elif args.order == 2:
+                make_reference_p2(work, Path(args.ref_out), out)
+            else:
+                make_reference(work)
         elif args.diagnose:
             diagnose(work, out)
         else:

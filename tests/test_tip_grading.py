@@ -1,6 +1,6 @@
 """3D crack-front (tip-line) grading of simplicial meshes (``mesh.tip_size``): the fracture
-edges inside the box are refined down to tip_size with a √r law; edges on the box boundary
-and intersection lines are not tip lines."""
+edges inside the box are refined down to tip_size with an r^γ law (γ = ``tip_grading``, 1/2 by
+default); edges on the box boundary and intersection lines are not tip lines."""
 
 import numpy as np
 import pytest
@@ -65,3 +65,55 @@ def test_boundary_edges_and_intersections_are_not_tip_lines():
     small_f = ~on_big
     low = small_f & (c[:, 2] < 0.31) & (np.abs(c[:, 1] - 0.5) < 0.1)
     assert h[low].max() < 0.035
+
+
+def _tip_law_fit(tip_grading, fracture_size, tip_size=0.02):
+    """Fracture-face diameters of a square crack (tip lines all round) against the tip law
+    h(r) = fracture_size (r/R)^γ floored at tip_size, R = TIP_RADIUS fracture_size: the median
+    and 95th percentile of h / law and the fitted slope of log h against log r, for r in
+    [3 tip_size, 0.2]."""
+    from polypore.mesh.generators.simplicial import TIP_RADIUS
+
+    spec = [_square("F", 0.5)]
+    kw = {} if tip_grading is None else {"tip_grading": tip_grading}
+    mesh = simplicial_mesh([0, 0, 0], [1, 1, 1], spec, 2 * fracture_size, fracture_size=fracture_size,
+                           tip_size=tip_size, **kw)
+    c, h = _face_sizes(FracturedMesh.build(mesh, spec))
+    r = 0.3 - np.abs(c[:, :2] - 0.5).max(axis=1)
+    law = np.maximum(fracture_size * (r / (TIP_RADIUS * fracture_size)) ** (tip_grading or 0.5), tip_size)
+    band = (r > 3 * tip_size) & (r < 0.2)
+    q = h[band] / law[band]
+    return mesh, np.median(q), np.percentile(q, 95), np.polyfit(np.log(r[band]), np.log(h[band]), 1)[0]
+
+
+def test_default_tip_grading_is_the_sqrt_law_unchanged():
+    # the default exponent is 1/2 and builds the field expression of before: the same mesh, bit for bit
+    from polypore.mesh.generators.simplicial import TIP_GRADING
+
+    assert TIP_GRADING == 0.5
+    spec = [_square("F", 0.5)]
+    a = simplicial_mesh([0, 0, 0], [1, 1, 1], spec, 0.3, fracture_size=0.08, tip_size=0.02)
+    b = simplicial_mesh([0, 0, 0], [1, 1, 1], spec, 0.3, fracture_size=0.08, tip_size=0.02, tip_grading=0.5)
+    assert np.array_equal(a.nodes, b.nodes) and np.array_equal(a.cell_nodes.values, b.cell_nodes.values)
+    _, med, p95, slope = _tip_law_fit(None, 0.15)
+    assert 0.75 < med < 1.25 and p95 < 1.5
+    assert 0.4 < slope < 0.7
+
+
+def test_tip_grading_exponent_sets_the_size_law():
+    # h = fracture_size (r/R)^γ: γ = 3/4 (quadratic displacements) followed as closely as the √r law,
+    # with a steeper slope (fracture_size larger so that both meshes stay small)
+    _, med, p95, slope = _tip_law_fit(0.75, 0.6)
+    _, _, _, slope_half = _tip_law_fit(0.5, 0.15)
+    assert 0.75 < med < 1.25 and p95 < 1.5
+    assert 0.65 < slope < 0.95
+    assert slope > slope_half + 0.15
+
+
+def test_tip_grading_input_check():
+    from polypore.core.errors import InputError
+
+    for bad in (0.0, -0.5, 1.5, "0.75"):
+        with pytest.raises(InputError, match="mesh.tip_grading"):
+            simplicial_mesh([0, 0, 0], [1, 1, 1], [_square("F", 0.5)], 0.3, fracture_size=0.08, tip_size=0.02,
+                            tip_grading=bad)
