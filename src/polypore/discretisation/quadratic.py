@@ -32,11 +32,11 @@ from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
-from scipy.sparse.csgraph import connected_components
 
 from ..core.errors import InputError
 from ..core.ragged import INDEX, frozen
 from ..mesh import FracturedMesh
+from ..mesh.sides import glued_sides
 from .faces import side_slots
 from .space import SlotCounts
 from .quadrature import cell_rule, face_rule
@@ -302,23 +302,13 @@ def _edge_sides(mesh, fracture_faces, cell_edge, face_edge, n_edges):
         fc = mesh.face_cells[f].astype(np.int64)
         a = np.searchsorted(keys, fc[:, 0] * n_edges + e)
         b = np.searchsorted(keys, fc[:, 1] * n_edges + e)
-        graph = sp.coo_array((np.ones(a.size, np.int8), (a, b)), shape=(inc.size, inc.size)).tocsr()
-        n_loc, local = connected_components(graph, directed=False)
-        first = np.full(n_loc, inc.size, np.int64)
-        np.minimum.at(first, local, np.arange(inc.size))
-        comp_edge = flat[inc[first]]
-        o = np.lexsort((first, comp_edge))
-        sedge = comp_edge[o]
-        head = np.concatenate([[True], sedge[1:] != sedge[:-1]])
-        start = np.maximum.accumulate(np.where(head, np.arange(n_loc), 0))
-        rank = np.empty(n_loc, np.int64)
-        rank[o] = np.arange(n_loc) - start
-        nsides[cut_edge] = np.bincount(comp_edge, minlength=n_edges)[cut_edge]
+        counts, rank = glued_sides(flat[inc], a, b, n_edges)
+        nsides[cut_edge] = counts[cut_edge]
     first_side = np.zeros(n_edges + 1, np.int64)
     np.cumsum(nsides, out=first_side[1:])
     side = first_side[flat]
     if inc.size:
-        side[inc] += rank[local]
+        side[inc] += rank
     return side.reshape(nc, ne).astype(INDEX), np.repeat(np.arange(n_edges, dtype=INDEX), nsides)
 
 

@@ -44,7 +44,8 @@ class Progress:
         self.growth = float(growth)
         self.done = 0
         self.start = time.perf_counter()
-        self._last = []                      # seconds of each finished item
+        self._last = []                      # seconds of the last two finished items
+        self._booked = 0.0                   # their running total (advance without seconds)
         if bar is None:
             bar = sys.stderr.isatty() and logging.getLogger("polypore").isEnabledFor(logging.INFO)
         self._bar = None
@@ -86,7 +87,9 @@ class Progress:
         """Record a finished item (its own ``seconds``, default: time since the previous one);
         returns 'elapsed …, about … left' for a log line."""
         now = self.elapsed
-        self._last.append(now - sum(self._last) if seconds is None else float(seconds))
+        took = now - self._booked if seconds is None else float(seconds)
+        self._booked += took
+        self._last = (self._last + [took])[-2:]
         self.done += 1
         text = self.text()
         if self._bar is not None:

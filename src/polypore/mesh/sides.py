@@ -83,19 +83,8 @@ def node_sides(mesh: Mesh, fracture_faces: np.ndarray) -> NodeSides:
         fc = mesh.face_cells[glue[ent]].astype(np.int64)
         a = np.searchsorted(keys, fc[:, 0] * nn + nodes)
         b = np.searchsorted(keys, fc[:, 1] * nn + nodes)
-        graph = sp.coo_array((np.ones(a.size, dtype=np.int8), (a, b)), shape=(inc.size, inc.size)).tocsr()
-        n_loc, local = connected_components(graph, directed=False)
-        first = np.full(n_loc, inc.size, dtype=np.int64)
-        np.minimum.at(first, local, np.arange(inc.size))
-        comp_node = vals[inc[first]]
-        order = np.lexsort((first, comp_node))
-        snode = comp_node[order]
-        head = np.concatenate([[True], snode[1:] != snode[:-1]])
-        start = np.maximum.accumulate(np.where(head, np.arange(n_loc), 0))
-        rank = np.empty(n_loc, dtype=INDEX)
-        rank[order] = np.arange(n_loc) - start
-        nsides[on_frac] = np.bincount(comp_node, minlength=nn)[on_frac]
-        rank_of_inc = rank[local]
+        counts, rank_of_inc = glued_sides(vals[inc], a, b, nn)
+        nsides[on_frac] = counts[on_frac]
     side_start = np.zeros(nn + 1, dtype=INDEX)
     np.cumsum(nsides, out=side_start[1:])
     side = side_start[vals]
@@ -103,3 +92,32 @@ def node_sides(mesh: Mesh, fracture_faces: np.ndarray) -> NodeSides:
         side[inc] += rank_of_inc
     side_node = np.repeat(np.arange(nn, dtype=INDEX), nsides)
     return NodeSides(frozen(side.astype(INDEX)), frozen(side_node))
+
+
+def glued_sides(entity: np.ndarray, a: np.ndarray, b: np.ndarray, n_entities: int):
+    """Sides of mesh entities (nodes, edges) from their (cell, entity) incidences.
+
+    Incidence i belongs to ``entity[i]``; pairs (a[k], b[k]) glue two incidences of one entity
+    across a face that is not a fracture face. The connected components are the sides; an
+    entity's sides are ranked by their first (lowest) incidence, so the numbering is reproducible.
+
+    Returns
+    -------
+    counts : (n_entities,) int
+        Sides per entity (0 for an entity without incidences).
+    rank : (len(entity),) int32
+        Rank of each incidence's side among its entity's sides.
+    """
+    n = entity.size
+    graph = sp.coo_array((np.ones(a.size, dtype=np.int8), (a, b)), shape=(n, n)).tocsr()
+    n_loc, local = connected_components(graph, directed=False)
+    first = np.full(n_loc, n, dtype=np.int64)
+    np.minimum.at(first, local, np.arange(n))
+    comp = entity[first]
+    order = np.lexsort((first, comp))
+    sorted_comp = comp[order]
+    head = np.concatenate([[True], sorted_comp[1:] != sorted_comp[:-1]])
+    start = np.maximum.accumulate(np.where(head, np.arange(n_loc), 0))
+    rank = np.empty(n_loc, dtype=INDEX)
+    rank[order] = np.arange(n_loc) - start
+    return np.bincount(comp, minlength=n_entities), rank[local]
