@@ -3,7 +3,7 @@ PYTHON ?= $(shell command -v python3.11 || command -v python3)
 VENV   := .venv
 BIN    := $(VENV)/bin
 
-.PHONY: demo test test-mpi clean
+.PHONY: demo test test-fast test-mpi clean
 
 $(BIN)/python:
 	$(PYTHON) -m venv $(VENV)
@@ -28,6 +28,21 @@ demo: $(VENV)/.installed
 
 test: $(VENV)/.installed-test
 	$(BIN)/python -m pytest -q -n 2
+
+# The optional extras 'fast' (PARDISO through pypardiso, ~950 MB of MKL wheels) and 'amg', in a
+# venv of their own so that `make test` keeps testing the default install; the whole suite runs
+# with PARDISO as the 3D direct solver, and tests/test_fast_extra.py fails if it did not install.
+VENV_FAST := .venv-fast
+BIN_FAST  := $(VENV_FAST)/bin
+
+$(VENV_FAST)/.installed: pyproject.toml
+	$(PYTHON) -m venv $(VENV_FAST)
+	$(BIN_FAST)/python -m pip install --quiet --upgrade pip
+	$(BIN_FAST)/python -m pip install --quiet -e '.[test,fast,amg]'
+	touch $@
+
+test-fast: $(VENV_FAST)/.installed
+	POLYPORE_REQUIRE_PARDISO=1 $(BIN_FAST)/python -m pytest -q -n 2
 
 # MPI/PETSc tests (docs/parallel.md): Debian's PETSc 3.18 (hypre, MUMPS) and Open MPI through
 # python3-petsc4py/python3-mpi4py, seen from a venv of this Python with numpy<2 (the Debian builds
@@ -64,4 +79,4 @@ test-mpi: $(VENV_MPI)/.installed
 	$(BIN_MPI)/python -m pytest -q tests/test_petsc_solvers.py tests/test_petsc_mpi.py
 
 clean:
-	rm -rf $(VENV) results build src/*.egg-info
+	rm -rf $(VENV) $(VENV_FAST) $(VENV_MPI) results build src/*.egg-info
