@@ -6,8 +6,7 @@
     .venv/bin/python benchmarks/cube_slip.py --reference     # the former P1 reference (~25 min, 4 GB)
     .venv/bin/python benchmarks/cube_slip.py --order 2       # quadratic displacements (~15 min)
     .venv/bin/python benchmarks/cube_slip.py --one out.json --order 2 --set mesh.tip_grading=0.75 ...
-                                                             # one run (mesh.tip_grading: the generator's
-                                                             # exponent, until the case files have the key)
+                                                             # one run (any --set of the case file)
 
 The built-in case ``cube-slip-3d``: unit cube, fracture x ∈ [0.2, 0.8] on y = z,
 y, z ∈ [0.3, 0.7], ymin clamped, ymax displaced by (−2e-4, −2e-4, 0) m, μ = λ_L = 10 GPa,
@@ -27,8 +26,8 @@ fields the same way from the two finest, into ``src/polypore/cases/data/cube-sli
 
 ``--order 2`` runs the quadratic space (``MechanicsData.order = 2``, docs/accuracy_3d.md) on its
 own mesh series (``UNIFORM_P2``, ``GRADED_P2``, ``GRADED_P2_34``) and the case's default mesh with order 1 for
-comparison. The case file has no key for the order, so each of these runs builds the case
-through the setup API in a separate process of this script (``--one``): wall time (mesh, set-up,
+comparison. Each of these runs builds the case through the setup API with the order set in
+``MechanicsData`` (whatever the case file says), in a separate process of this script (``--one``): wall time (mesh, set-up,
 solve; no output files) and peak memory are again the run's own. The maximum slip of the graded
 P2 series is extrapolated like the reference's, to compare the limits.
 
@@ -39,16 +38,13 @@ Writes ``<out>/cube_slip.json``, ``<out>/cube_slip.md`` and ``<out>/cube_slip.pn
 from __future__ import annotations
 
 import argparse
-import contextlib
 import csv
-import functools
 import json
 import subprocess
 import sys
 import tempfile
 import tomllib
 from pathlib import Path
-from unittest import mock
 
 import numpy as np
 import tomli_w
@@ -200,22 +196,6 @@ def p2_jump_on_grid(problem, u: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.
     return jump.reshape(a.size, b.size, 3)
 
 
-@contextlib.contextmanager
-def _tip_grading(overrides: list[str]):
-    """Overrides without ``mesh.tip_grading=γ``, and the simplicial generator called with that
-    exponent while the context lasts (the case files have no such key yet)."""
-    keep = [o for o in overrides if not o.startswith("mesh.tip_grading=")]
-    given = [o.split("=", 1)[1] for o in overrides if o.startswith("mesh.tip_grading=")]
-    if not given:
-        yield keep
-        return
-    from polypore.mesh.generators import simplicial
-
-    with mock.patch.object(simplicial, "simplicial_mesh",
-                           functools.partial(simplicial.simplicial_mesh, tip_grading=float(given[-1]))):
-        yield keep
-
-
 def _penny_field_errors(exact, X, W, q, n) -> dict:
     """Relative L2 errors of the P2 opening and slip as fields (values q (m, 3) at the points X of a face
     rule with weights W, normals n) against the penny-shaped crack's analytic ones at those points:
@@ -243,8 +223,7 @@ def _penny_field_errors(exact, X, W, q, n) -> dict:
 def one(path: Path, order: int, overrides: list[str], case_name: str = str(CASE), field: Path | None = None) -> None:
     """Mesh, set up and solve a static case (default: the cube) with ``MechanicsData.order = order``;
     write a summary.json-like record (unknowns, cells, seconds, peak_memory_mb, newton, errors)
-    to ``path``. ``mesh.tip_grading=γ`` among the overrides sets the generator's tip-grading
-    exponent. With ``field``, also save the slip at the points of a face rule (order 2; the face
+    to ``path``. With ``field``, also save the slip at the points of a face rule (order 2; the face
     centroids for order 1) and λ_n at the face centroids there (.npz), for a reference."""
     import dataclasses
     import resource
@@ -262,9 +241,8 @@ def one(path: Path, order: int, overrides: list[str], case_name: str = str(CASE)
     from polypore.models.mechanics import ContactMechanics
 
     t0 = time.perf_counter()
-    with _tip_grading(overrides) as ov:
-        case = load_case(case_name, ov)
-        fm = build_fractured_mesh(case)
+    case = load_case(case_name, overrides)
+    fm = build_fractured_mesh(case)
     setup = mechanics_setup(case, fm)
     problem = ContactMechanics(fm, dataclasses.replace(setup.data, order=order), setup.solver, setup.newton)
     st = problem.solve(verbose=False)

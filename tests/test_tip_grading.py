@@ -117,3 +117,25 @@ def test_tip_grading_input_check():
         with pytest.raises(InputError, match="mesh.tip_grading"):
             simplicial_mesh([0, 0, 0], [1, 1, 1], [_square("F", 0.5)], 0.3, fracture_size=0.08, tip_size=0.02,
                             tip_grading=bad)
+
+
+def test_tip_grading_case_key(tmp_path):
+    """``mesh.tip_grading`` reaches the generator from a case file; without tip_size, or out of
+    (0, 1], it is an input error naming the field."""
+    from importlib.resources import files
+
+    from polypore.core.errors import InputError
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import build_fractured_mesh
+
+    coarse = ["mesh.size=0.48", "mesh.fracture_size=0.128", "mesh.tip_size=0.012"]
+    n = [build_fractured_mesh(load_case("cube-slip-3d", [*coarse, f"mesh.tip_grading={g}"])).mesh.n_cells
+         for g in (0.5, 0.75)]
+    assert n[1] > 1.3 * n[0]                 # a steeper law keeps small cells further from the edge
+    with pytest.raises(InputError, match=r"mesh\.tip_grading.*\(0, 1\]"):
+        load_case("cube-slip-3d", ["mesh.tip_grading=1.5"])
+    src = (files("polypore.cases") / "data" / "cube-slip-3d.toml").read_text()
+    path = tmp_path / "c.toml"
+    path.write_text(src.replace("tip_size = 0.015", "tip_grading = 0.7"))
+    with pytest.raises(InputError, match=r"mesh\.tip_grading.*tip_size"):
+        load_case(str(path))

@@ -94,12 +94,18 @@ def _band(measure: float, perimeter: float, h: float, size: float, grading: floa
     return max(cells - c * grown(R) / size ** d, 0.0)
 
 
-def _tips(measure: float, h: float, d: int) -> float:
-    """Cells of the √r-graded zone around tip points (2D, ``measure`` their number) or tip lines
-    (3D, their length): h(r) = h √(r/R) for r < R = TIP_RADIUS h gives ∫ c 2π r / h(r)^d dr =
-    2π c R² / h² per tip (2D), 4π c R² / h³ per unit tip length (3D), halved in 3D: the floor at
-    tip_size and the cap at the fracture size cut the zone."""
-    return CELLS_PER_SIZE[d] * 2 * math.pi * measure * TIP_RADIUS ** 2 * (1 / h if d == 3 else 1.0)
+def _tips(measure: float, h: float, d: int, tip_size: float, gamma: float) -> float:
+    """Cells of the graded zone around tip points (2D, ``measure`` their number) or tip lines
+    (3D, their length): h(r) = max(tip_size, h (r/R)^gamma) for r < R = TIP_RADIUS h, so
+    ∫ c 2π r / h(r)^d dr = 2π c [r0²/(2 tip_size^d) + R^(dγ)/h^d ∫_r0^R r^(1-dγ) dr] with r0 where
+    the floor starts; halved in 3D (the cap at the fracture size cuts the zone). For γ = 1/2 and
+    a fine floor this is 2π c R²/h² per tip (2D), 2π c R²/h³ per unit tip length (3D)."""
+    R = TIP_RADIUS * h
+    r0 = R * (min(tip_size, h) / h) ** (1.0 / gamma)
+    p = 2.0 - d * gamma
+    outer = math.log(R / r0) if abs(p) < 1e-12 else (R ** p - r0 ** p) / p
+    per_tip = r0 ** 2 / (2 * tip_size ** d) + R ** (d * gamma) / h ** d * outer
+    return CELLS_PER_SIZE[d] * 2 * math.pi * measure * per_tip * (0.5 if d == 3 else 1.0)
 
 
 def _length(points) -> float:
@@ -167,7 +173,7 @@ def _cells(spec) -> tuple[float, str]:
         hf = max(min(h, edge), 1e-300)
         parts["mesh.fracture_size"] += _band(measure, tips, hf, size, m.grading, d, volume)
         if m.generator == "simplicial" and m.tip_size is not None and m.tip_size < hf < size:
-            parts["mesh.tip_size"] += _tips(tips, hf, d)
+            parts["mesh.tip_size"] += _tips(tips, hf, d, m.tip_size, m.tip_grading)
     cells = sum(parts.values())
     if m.generator == "agglomerated":   # a simplicial mesh of half the sizes, merged pairwise per round
         cells *= 2 ** d / 2 ** m.rounds

@@ -202,7 +202,7 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
 
         mesh = simplicial_mesh(lower, upper, specs, m.size, fracture_size=m.fracture_size or m.size,
                                interfaces=interfaces, seed=m.seed, grading=m.grading, tip_size=m.tip_size,
-                               mirror=m.mirror)
+                               tip_grading=m.tip_grading, mirror=m.mirror)
     elif m.generator == "voronoi":
         from ..mesh.generators.voronoi import voronoi_mesh
 

@@ -18,7 +18,7 @@ NONPLANAR = ("centre", "diagonal", "keep")   # polypore.mesh.cornerpoint.process
 _BOX = {"lower", "upper", "seed", "perturb"}
 GENERATOR_KEYS = {
     "cartesian": _BOX | {"cells", "size"},
-    "simplicial": _BOX | {"size", "fracture_size", "grading", "tip_size", "mirror"},
+    "simplicial": _BOX | {"size", "fracture_size", "grading", "tip_size", "tip_grading", "mirror"},
     "voronoi": _BOX | {"size"},
     "agglomerated": _BOX | {"size", "fracture_size", "grading", "rounds"},
     "file": {"file"},
@@ -65,6 +65,9 @@ class Mesh(Table):
     grading: Positive = Field(0.4, description="simplicial, agglomerated: growth of the cell size per unit "
                               "distance from the fractures")
     tip_size: Positive | None = Field(None, description="simplicial: cell size at crack tips / tip lines (m)")
+    tip_grading: number(gt=0, le=1) = Field(0.5, description="simplicial, with tip_size: exponent g of the size "
+                                            "h(r) ~ r^g near tips; 0.5 suits the P1 space, 2/3-3/4 the "
+                                            "quadratic one (mechanics.order = 2)")
     mirror: choice(*MIRROR_MODES) = Field("none", description="simplicial: mesh symmetric about the fractures "
                                           "around tips (2D) or along straight fractures")
     rounds: number(ge=0, integer=True) = Field(2, description="agglomerated: rounds of pairwise merging")
@@ -115,6 +118,9 @@ class Mesh(Table):
         elif self.size is None:
             fail(f"is required with generator = {self.generator!r}: the target cell size (m)"
                  + (" (or give cells)" if self.generator == "cartesian" else ""), key="size")
+        if "tip_grading" in self.given() and self.tip_size is None:
+            fail("grades the cells towards tips down to tip_size, which is not given (set mesh.tip_size)",
+                 key="tip_grading")
         return self
 
     def _cornerpoint(self):
