@@ -19,8 +19,8 @@ run's own (wall includes process start and meshing; the load average over the ru
 recorded: on a shared machine the wall times are inflated). The built-in cases
 ``penny-pressurised`` (Sneddon) and ``penny-inclined`` (Coulomb sliding, on its default mesh
 mirrored about the crack plane, two-sided bubbles) report their errors in summary.json
-(``cases/penny_exact.py``: face-mean jumps and face λ_n against the analytic values at the
-face centroids). Series (``--series``; a "-p2" suffix is order 2, ``--orders`` filters):
+(``cases/penny_exact.py``: order 1, face-mean jumps and face λ_n against the analytic values
+at the face centroids; order 2, the jump as a field at the points of a face rule). Series (``--series``; a "-p2" suffix is order 2, ``--orders`` filters):
 "pressurised", "inclined", "general" (``penny-inclined`` on a general mesh, ``mesh.mirror =
 "none"``), and the same with "-p2".
 
@@ -255,8 +255,9 @@ def _write_md(out: Path, result: dict):
         f"{result['level_rule']}; discussion in docs/accuracy_3d.md, \"Penny-shaped cracks\"). Wall times include "
         "process start and meshing, on 2 cores shared with other jobs (\"load\": the larger of the 1-minute load "
         "averages at the start and the end of the run): they are inflated, and only roughly comparable. "
-        "Errors: relative L2 over the crack faces, face-mean jumps and face λ_n against the analytic values at "
-        "the face centroids (`cases/penny_exact.py`); \"rim out\": r ≤ 0.9a. Rates: least-squares slopes over "
+        "Errors: relative L2 over the crack faces, face-mean jumps (order 1) or the jump at the points of a "
+        "face rule (order 2; before commit 'penny P2 errors as a field' the face means too, 0.1-0.9 points "
+        "higher) and face λ_n against the analytic values (`cases/penny_exact.py`); \"rim out\": r ≤ 0.9a. Rates: least-squares slopes over "
         "the four meshes, in h (e ~ h^p) and per unknown (e ~ N^-q).\n\n" + md)
 
 

@@ -195,8 +195,9 @@ def test_quadratic_displacements_beat_p1_on_a_coarse_penny_mesh():
     p2 = solve_static(load_case("penny-pressurised", mesh + ["mechanics.order=2"]))[3]
     p1 = solve_static(load_case("penny-pressurised", mesh))[3]
     assert p2["faces_open"] == p2["faces"] == p1["faces"] and p2["faces_wrong_state"] == 0
-    # measured: P2 7.8 % whole crack, 5.0 % rim out, crack volume −7.4 %, centre −2.8 %
-    assert p2["opening_L2_rel"] < 0.09 and p2["opening_L2_rel_away_from_rim"] < 0.06
+    # measured (the P2 jump as a field at face-rule points): 6.9 % whole crack, 4.8 % rim out, crack
+    # volume −6.6 %, centre −2.6 % (face means against centroid values: 7.8, 5.0, −7.4, −2.8 %)
+    assert p2["opening_L2_rel"] < 0.075 and p2["opening_L2_rel_away_from_rim"] < 0.055
     assert -0.09 < p2["opening_mean_rel"] < 0 and -0.04 < p2["opening_centre_rel"] < 0
     # measured: P1 27.4 % whole crack, 25.3 % rim out (volume −28.8 %): P2 is 3.5–5 times more accurate
     assert p1["opening_L2_rel"] > 2.5 * p2["opening_L2_rel"]
