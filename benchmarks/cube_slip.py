@@ -106,6 +106,9 @@ def graded_ref_p2(scale: float) -> list[str]:
             f"mesh.tip_size={REF_P2_SIZES[2] * scale:.6g}", f"mesh.tip_grading={REF_P2_GRADING:.6g}"]
 
 
+P1_PINS = ["mechanics.order=1", "mesh.tip_grading=0.5"]
+
+
 def graded(scale: float) -> list[str]:
     return [f"mesh.size={0.3 * scale:.6g}", f"mesh.fracture_size={0.08 * scale:.6g}",
             f"mesh.tip_size={0.015 * scale:.6g}"]
@@ -119,7 +122,9 @@ def run(case: Path, overrides: list[str], workdir: Path, tag: str) -> dict:
     """One ``polypore run`` in its own process; its summary.json plus the per-face table."""
     out = workdir / tag
     cmd = [str(POLYPORE), "-q", "run", str(case), "--out", str(out), "--force", "--set", "solver.linear=pardiso"]
-    for o in overrides:
+    # these runs are the linear space's series: its order and √r law pinned (the case file runs P2 on
+    # an r^0.6 mesh); the overrides come later and win
+    for o in P1_PINS + overrides:
         cmd += ["--set", o]
     subprocess.run(cmd, check=True)
     summary = json.loads((out / "summary.json").read_text())
@@ -145,7 +150,10 @@ def run_one(order: int, overrides: list[str], workdir: Path, tag: str, case: Pat
            "--case", str(case)]
     if field:
         cmd += ["--field", str(workdir / f"{tag}.npz")]
-    for o in overrides + ["solver.linear=pardiso"]:
+    # the case's own tip_grading (0.6) is not the series': the generator's √r law unless a series
+    # gives its exponent
+    pins = ["mesh.tip_grading=0.5"] if Path(case) == CASE else []
+    for o in pins + overrides + ["solver.linear=pardiso"]:
         cmd += ["--set", o]
     subprocess.run(cmd, check=True)
     return json.loads(out.read_text())
