@@ -4,7 +4,9 @@
         [--json docs/c5_runs.json] [--plots-dir docs]
 
 Reads the run directories given (else every subdirectory of ``--out-root``); a directory without
-summary.json (run in progress or failed) is skipped with a message. Writes a Markdown table per
+summary.json (run in progress or failed) is skipped with a message. With ``--keep`` the runs of
+the existing ``--json`` file that are not read again stay in the table (the date column says when
+each ran). Writes a Markdown table per
 configuration (Newton and GMRES iterations, step cuts, wall time, peak memory, time shares) and
 the contact states (open / stick / slip faces per fracture) at the output times (T/2 and T for
 C5) read from fractures.csv, ``c5_newton_per_step.png`` and, where GMRES iterations are recorded
@@ -135,8 +137,8 @@ def markdown(runs: list[dict], plots: list[Path], md_path: Path) -> str:
              "from `/usr/bin/time -v` (timing.json; else the run's own summary.json); shares of the run's total.", "",
              "| configuration | mesh.size | cells | unknowns | bubbles | linear | steps | Newton total | Newton / step "
              "| max | step cuts | GMRES total | GMRES / Newton | threads | wall (s) | peak memory (MB) | assembly "
-             "| linear solves | other | energy violations |",
-             "|---|" + "---:|" * 2 + "---:|---|---|" + "---:|" * 14]
+             "| linear solves | other | energy violations | date |",
+             "|---|" + "---:|" * 2 + "---:|---|---|" + "---:|" * 14 + "---|"]
     for r in runs:
         sh = r["shares_percent"]
         lines.append(
@@ -144,7 +146,7 @@ def markdown(runs: list[dict], plots: list[Path], md_path: Path) -> str:
             f"{r['n_steps']} | {r['newton_total']} | {fmt(r['newton_mean'], '.2f')} | {fmt(r['newton_max'])} | "
             f"{r['cuts']} | {fmt(r['gmres_total'])} | {fmt(r['gmres_per_newton'], '.1f')} | {fmt(r['threads'])} | "
             f"{r['wall_seconds']:.1f} | {r['peak_memory_mb']:.0f} | {sh['assembly']:.0f} % | {sh['linear']:.0f} % | "
-            f"{sh['other']:.0f} % | {r['energy_violations']} |")
+            f"{sh['other']:.0f} % | {r['energy_violations']} | {(r.get('date') or '–')[:10]} |")
     lines += [""] + [f"![{p.stem}]({os.path.relpath(p, md_path.parent)})" for p in plots] + [""]
     fractures = sorted({f for r in runs for states in r["contact_states"].values() for f in states})
     lines += ["## Contact states at the output times", "",
@@ -199,9 +201,18 @@ def main() -> int:
     ap.add_argument("--md", default="docs/c5_runs.md")
     ap.add_argument("--json", default="docs/c5_runs.json")
     ap.add_argument("--plots-dir", default="docs")
+    ap.add_argument("--keep", action="store_true",
+                    help="keep the runs of the existing --json file that are not read again (same run name: "
+                         "replaced), e.g. when only one configuration was re-run")
     args = ap.parse_args()
     dirs = [Path(d) for d in args.dirs] or sorted(p for p in Path(args.out_root).iterdir() if p.is_dir())
     runs = [r for r in map(load_run, dirs) if r is not None]
+    if args.keep and Path(args.json).exists():
+        names = {r["name"] for r in runs}
+        for r in json.loads(Path(args.json).read_text())["runs"]:
+            if r["name"] not in names:
+                r["contact_states"] = {float(t): v for t, v in r["contact_states"].items()}
+                runs.append(r)
     if not runs:
         print("no finished run found", file=sys.stderr)
         return 1

@@ -254,26 +254,32 @@ def test_block_solvers_keep_iterations_list_semantics():
 
 
 def test_block_petsc_runs_a_coupled_case_with_the_newton_history_of_block_amg(tmp_path):
-    """solver.linear = "block-petsc" through the case file: the same Newton iterations and contact
-    states per step as block-amg on a small 3D poromechanics case; a misspelt PETSc option is an
-    input error naming it."""
+    """solver.linear = "block-petsc" through the case file: with the fixed linear tolerance
+    (solver.forcing = "fixed"), the same Newton iterations and contact states per step as block-amg
+    on a small 3D poromechanics case; with Eisenstat–Walker forcing (the default; PETSc tests it in
+    the plain 2-norm, block-amg in Newton's weighted norm) the same contact states, Newton counts
+    within one per step. A misspelt PETSc option is an input error naming it."""
     pytest.importorskip("petsc4py.PETSc")
     import json
     import subprocess
     import sys
 
     def run(linear, *extra):
-        out = tmp_path / f"{linear}{len(extra)}"
+        out = tmp_path / f"{linear}{len(list(tmp_path.iterdir()))}"
         cmd = [sys.executable, "-m", "polypore", "-q", "run", "dfm-3d", "--out", str(out), "--set", "mesh.size=0.2",
                "--set", "time.end=4", "--set", "time.output_times=[4.0]", "--set", f"solver.linear={linear}", *extra]
         return subprocess.run(cmd, capture_output=True, text=True, timeout=600), out
 
     hist = {}
-    for linear in ("block-amg", "block-petsc"):
-        proc, out = run(linear)
-        assert proc.returncode == 0, proc.stderr
-        steps = json.loads((out / "summary.json").read_text())["steps"]
-        hist[linear] = [(s["newton_iterations"], s["open"], s["stick"], s["slip"]) for s in steps]
-    assert hist["block-petsc"] == hist["block-amg"]
+    for forcing in ("fixed", "eisenstat-walker"):
+        for linear in ("block-amg", "block-petsc"):
+            proc, out = run(linear, "--set", f"solver.forcing={forcing}")
+            assert proc.returncode == 0, proc.stderr
+            steps = json.loads((out / "summary.json").read_text())["steps"]
+            hist[linear, forcing] = [(s["newton_iterations"], s["open"], s["stick"], s["slip"]) for s in steps]
+    assert hist["block-petsc", "fixed"] == hist["block-amg", "fixed"]
+    ew_amg, ew_petsc = hist["block-amg", "eisenstat-walker"], hist["block-petsc", "eisenstat-walker"]
+    assert [h[1:] for h in ew_petsc] == [h[1:] for h in ew_amg]
+    assert all(abs(a[0] - b[0]) <= 1 for a, b in zip(ew_amg, ew_petsc)), (ew_amg, ew_petsc)
     proc, _ = run("block-petsc", "--set", "solver.petsc.ksp_typo=1")
     assert proc.returncode == 2 and "ksp_typo" in proc.stderr and "Traceback" not in proc.stderr

@@ -27,7 +27,7 @@ from ..discretisation import DisplacementSpace, Operators, QuadraticOperators, Q
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
 from ..solvers.linear import LinearSolver
-from ..solvers.newton import Linearisation, NewtonOptions, semismooth_newton
+from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import LAWS, OPEN, SLIP, STICK, ContactLaw, linearise_contact
 
 log = logging.getLogger("polypore")
@@ -434,7 +434,11 @@ class ContactMechanics:
             norms["contact"] = float(np.linalg.norm(C) / sc)
         counts = {"open": int(np.sum(state == OPEN)), "stick": int(np.sum(state == STICK)),
                   "slip": int(np.sum(state == SLIP))} if nf else {}
-        return Linearisation(np.concatenate([Ru_f, (C * b[:, None]).ravel()]), Jac, norms, counts, state)
+        # the residual rows are N: equilibrium, and contact C_σ β_σ; dividing by the block scales
+        # gives the weights whose 2-norm is Newton's measure (iterative solves stop in it)
+        w = row_weights(np.full(Ru_f.size, su), np.repeat(b * sc, d))
+        return Linearisation(np.concatenate([Ru_f, (C * b[:, None]).ravel()]), Jac, norms, counts, state,
+                             row_scale=w)
 
     def solve(self, t: float = 0.0, initial: MechanicsState | None = None, q_old: np.ndarray | None = None,
               verbose: bool = True) -> MechanicsState:

@@ -63,7 +63,7 @@ from ..assembly.pattern import Pattern
 from ..core.errors import InputError, RunError
 from ..mesh import FracturedMesh
 from ..solvers.linear import LinearSolver
-from ..solvers.newton import Linearisation, NewtonOptions, semismooth_newton
+from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import OPEN, SLIP, STICK, linearise_contact
 from .energy import step_energy
 from .flow import FlowData, FlowModel, FlowSolution, _positive
@@ -608,10 +608,14 @@ class Poromechanics:
         counts = {"open": int(np.sum(state == OPEN)), "stick": int(np.sum(state == STICK)),
                   "slip": int(np.sum(state == SLIP))} if nf else {}
         res = np.concatenate([Ru[free], (C * b[:, None]).ravel(), -s[ff] * Rf[ff]])
+        # row weights of Newton's measure (solvers/newton.py): a flow row −s_i Rf_i of kind k
+        # counts as Rf_i/√den_k, the kind's norm above (kinds summed in the 2-norm, not maxed)
+        w = row_weights(np.full(free.size, su), np.repeat(b * sc, d) if nf else np.zeros(0),
+                        s[ff] * np.sqrt(np.maximum(den, 1e-300))[kind])
         # the dilatant aperture is smooth, not piecewise linear: a step that keeps the contact
         # states is not exact, and convergence needs a small increment as well
         return Linearisation(res, Jac, norms, counts, state,
-                             piecewise_linear=not (nf and np.any(self.tan_psi > 0)))
+                             piecewise_linear=not (nf and np.any(self.tan_psi > 0)), row_scale=w)
 
     def step_context(self, old: PoroState, dt: float, t: float):
         """Everything fixed during the Newton loop of the step old → t, and the first iterate x0

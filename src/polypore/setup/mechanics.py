@@ -195,7 +195,7 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
         exact = _penny_loads(exact, fm, friction, pf_f)
     s = spec.solver or Solver()
     newton = NewtonOptions(tol=s.tolerance, increment_tol=s.increment_tolerance, max_iterations=s.max_iterations,
-                           label="contact Newton")
+                           forcing=s.forcing, forcing_max=s.forcing_max, label="contact Newton")
     data = MechanicsData(mu=mu, lam=lam, displacement=tuple(disp), traction=tuple(trac), body_force=body_f,
                          matrix_pressure=pm_f, biot=sec.biot, fracture_pressure=pf_f, initial_stress=s0_f,
                          contact=ContactSpec(c.law, friction, threshold, c.beta, c.initial),

@@ -107,10 +107,12 @@ class BlockContactSolver:
     d : block size of the multipliers (2 or 3)
     condensation : ContactCondensation
     near_nullspace : (n_u, k) rigid-body modes of the free displacement dofs
-    rtol, maxiter : GMRES tolerance (relative residual) and cap on inner iterations
+    rtol, maxiter : GMRES tolerance (relative residual) and cap on inner iterations; Newton's
+        :class:`~.newton.KrylovTarget` overrides rtol per solve
     accept_rtol : relative residual still returned when rtol is not reached (round-off floor)
     """
 
+    takes_target = True          # solve() accepts Newton's KrylovTarget (weights, forcing term)
     n_u: int
     d: int
     condensation: ContactCondensation
@@ -122,7 +124,8 @@ class BlockContactSolver:
     iterations: list = field(default_factory=list)
     seconds: float = 0.0
 
-    def solve(self, J, rhs) -> np.ndarray:
+    def solve(self, J, rhs, target=None) -> np.ndarray:
+        """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
         t0 = time.perf_counter()
         J = sp.csr_matrix(J)
         n_u = self.n_u
@@ -137,14 +140,29 @@ class BlockContactSolver:
             xc = Cinv @ (rc - Cu_s @ xu)
             return np.concatenate([xu, xc])
 
-        x = _gmres(J, rhs, apply, self)
+        x = _gmres(J, rhs, apply, self, target)
         self.seconds += time.perf_counter() - t0
         log.debug("block contact solver: %d GMRES iterations, %.2f s", self.iterations[-1], time.perf_counter() - t0)
         return x
 
 
-def _gmres(J, rhs, apply, solver):
-    """Right-preconditioned restarted GMRES with iteration count and failure message.
+def _gmres(J, rhs, apply, solver, target=None):
+    """Restarted GMRES with iteration count and failure message.
+
+    Parameters
+    ----------
+    J : (n, n) csr
+    rhs : (n,)
+    apply : the preconditioner, r -> x ≈ J⁻¹ r
+    solver : the block solver (rtol, maxiter, restart, accept_rtol, iterations)
+    target : KrylovTarget or None (then ``solver.rtol`` in the plain 2-norm, left-preconditioned:
+        the behaviour of ``forcing = "fixed"``). With a target, GMRES runs right-preconditioned
+        on the row-scaled system diag(w) J x = diag(w) rhs (w = target.weights, or ones), with the
+        preconditioner v -> apply(v / w): the operator diag(w) J M diag(w)⁻¹ is similar to J M,
+        so the convergence rate is that of the unweighted system, and what GMRES minimises and
+        tests is the true residual in Newton's weighted norm (newton.py), to target.rtol. SciPy's
+        gmres preconditions from the left (it minimises ‖M (b − J x)‖, which says little about
+        ‖b − J x‖), so the right preconditioning is composed here.
 
     Restart cycles are driven here, one SciPy call each, so that ``solver.maxiter`` caps the
     inner iterations and the true residual is checked after every cycle. On fine meshes it has a
@@ -154,34 +172,55 @@ def _gmres(J, rhs, apply, solver):
     is therefore accepted: Newton only needs an inexact step.
     """
     n = J.shape[0]
-    M = spla.LinearOperator((n, n), matvec=apply, dtype=float)
     its = [0]
 
     def cb(_):
         its[0] += 1
 
-    bnorm = np.linalg.norm(rhs)
+    if target is None:
+        rtol, w, b = solver.rtol, None, rhs
+        M = spla.LinearOperator((n, n), matvec=apply, dtype=float)
+    else:
+        rtol = float(target.rtol)
+        w = np.ones(n) if target.weights is None else np.asarray(target.weights, float)
+        b = w * rhs
+
+        def right(v):                      # M diag(w)⁻¹ v: back to unknowns
+            return apply(v / w)
+
+        op = spla.LinearOperator((n, n), matvec=lambda v: w * (J @ right(v)), dtype=float)
+    bnorm = np.linalg.norm(b)
     x = np.zeros(n)
     if bnorm == 0.0:
         solver.iterations.append(0)
         return x
     prev = np.inf
+    r = b
     while True:
         restart = min(solver.restart, solver.maxiter - its[0])
-        x, info = spla.gmres(J, rhs, x0=x, M=M, rtol=solver.rtol, restart=restart, maxiter=1,
-                             callback=cb, callback_type="pr_norm")
-        res = np.linalg.norm(J @ x - rhs) / bnorm
-        if info == 0 or res <= solver.rtol:
+        if w is None:
+            x, info = spla.gmres(J, rhs, x0=x, M=M, rtol=rtol, restart=restart, maxiter=1,
+                                 callback=cb, callback_type="pr_norm")
+            res = np.linalg.norm(J @ x - rhs) / bnorm
+        else:
+            # the correction of this cycle, to the absolute target rtol ‖w∘b‖ (r is the true residual)
+            y, info = spla.gmres(op, r, rtol=0.0, atol=rtol * bnorm, restart=restart, maxiter=1,
+                                 callback=cb, callback_type="pr_norm")
+            x = x + right(y)
+            r = b - w * (J @ x)
+            res = np.linalg.norm(r) / bnorm
+        if info == 0 and w is None or res <= rtol:
             break
         if res > 0.5 * prev and res <= solver.accept_rtol:     # a whole cycle gained nothing: the floor
             log.debug("GMRES: relative residual %.2e after %d iterations, at the round-off floor above rtol "
-                      "%.0e; accepted", res, its[0], solver.rtol)
+                      "%.0e; accepted", res, its[0], rtol)
             break
         prev = res
         if its[0] >= solver.maxiter:
             solver.iterations.append(its[0])
-            raise RunError(f"GMRES did not reach rtol={solver.rtol:g} in {its[0]} iterations (relative "
-                           f"residual {res:.2e}); try solver.linear = 'pardiso'")
+            raise RunError(f"GMRES did not reach rtol={rtol:g} in {its[0]} iterations (relative "
+                           f"residual {res:.2e}{', row-weighted' if w is not None else ''}); try "
+                           "solver.linear = 'pardiso'")
     solver.iterations.append(its[0])
     return x
 
@@ -259,6 +298,7 @@ class BlockPoroSolver:
         caller's scaled unknowns); set by the model before each step
     """
 
+    takes_target = True          # solve() accepts Newton's KrylovTarget (weights, forcing term)
     n_u: int
     d: int
     n_l: int
@@ -276,7 +316,8 @@ class BlockPoroSolver:
     def __post_init__(self):
         self._p = _PressureSolve(self.pressure)
 
-    def solve(self, J, rhs) -> np.ndarray:
+    def solve(self, J, rhs, target=None) -> np.ndarray:
+        """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
         t0 = time.perf_counter()
         J = sp.csr_matrix(J)
         nu, nl = self.n_u, self.n_l
@@ -295,7 +336,7 @@ class BlockPoroSolver:
             xl = Cinv @ (rl - Cu_s @ xu) if nl else rl
             return np.concatenate([xu, xl, xp])
 
-        x = _gmres(J, rhs, apply, self)
+        x = _gmres(J, rhs, apply, self, target)
         self.seconds += time.perf_counter() - t0
         log.debug("block poro solver: %d GMRES iterations, %.2f s", self.iterations[-1], time.perf_counter() - t0)
         return x

@@ -14,6 +14,10 @@ Backends
 ``block-petsc`` the block preconditioners of ``block-amg`` with PETSc's PCFIELDSPLIT
              (:mod:`.petsc_fieldsplit`); the model builds it.
 ``auto``     pardiso if installed, else superlu.
+
+In Newton's loops only the block backends take per-iteration targets (row weights and the
+Eisenstat–Walker forcing term, :mod:`.newton`); ``rtol`` is then their tolerance outside Newton
+(and with ``solver.forcing = "fixed"``). Direct backends solve to round-off in any case.
 """
 
 from __future__ import annotations

@@ -177,11 +177,26 @@ class _FieldSplitBase:
         self.driver.stats.convert_seconds += time.perf_counter() - t0
         return new
 
-    def _run(self, J, rhs, Ml, shift, nu, nl, po, new_step: bool = False):
+    def _forcing(self, target):
+        """Newton's forcing term (a KrylovTarget, or None: ``rtol``) as the KSP's rtol of this solve.
+
+        Pass-through only: PETSc's GMRES tests the plain 2-norm, the row weights of the target are
+        not applied (row-scaling J would row-scale the pressure block that GAMG coarsens), so η is
+        used as the relative reduction of the unweighted residual. An rtol set by the user
+        (``[solver.petsc]`` or PETSc's command line) wins.
+        """
+        if "ksp_rtol" in self.driver.user or self.P.Options().hasName(self.prefix + "ksp_rtol"):
+            return
+        rtol = self.rtol if target is None else float(target.rtol)
+        self.driver.defaults["ksp_rtol"] = repr(rtol)         # read by set-ups (setFromOptions)
+        self.driver.ksp.setTolerances(rtol=rtol)              # and by a reused preconditioner's KSP
+
+    def _run(self, J, rhs, Ml, shift, nu, nl, po, new_step: bool = False, target=None):
         new = self._matrices(J, Ml, shift, nu, nl, po)
         if new:
             self._nsp_u = None if self.near_nullspace is None else near_nullspace(self.near_nullspace)
         self.driver.operators(self._Jm, self._Pm, changed_pattern=new)
+        self._forcing(target)
         if new:
             self._build_pc(nu, nl, po, J.shape[0])
         self._new_step = new_step
@@ -227,6 +242,7 @@ class PetscBlockContactSolver(_FieldSplitBase):
     reuse : ReusePolicy of the whole preconditioner across Newton iterations
     """
 
+    takes_target = True          # solve() accepts Newton's KrylovTarget (its rtol: _forcing)
     n_u: int
     d: int
     condensation: ContactCondensation
@@ -277,7 +293,8 @@ class PetscBlockContactSolver(_FieldSplitBase):
             S.setBlockSizes(self.bs_u, self.bs_u)
         S.setNearNullSpace(self._nsp_u)
 
-    def solve(self, J, rhs) -> np.ndarray:
+    def solve(self, J, rhs, target=None) -> np.ndarray:
+        """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
         t0 = time.perf_counter()
         J = _canonical(J)
         nu = self.n_u
@@ -290,7 +307,7 @@ class PetscBlockContactSolver(_FieldSplitBase):
                                 np.tile(np.arange(d), nf * d) + np.repeat(np.arange(nf) * d, d * d),
                                 np.arange(0, nf * d * d + 1, d)), shape=(nl, nl))
             Ml = sp.hstack([Cu_s, Cl]).tocsr()
-        x = self._run(J, rhs, Ml, None, nu, nl, nu + nl)
+        x = self._run(J, rhs, Ml, None, nu, nl, nu + nl, target=target)
         self.seconds += time.perf_counter() - t0
         log.debug("PETSc block contact solver: %d GMRES iterations, %.2f s", self.iterations[-1],
                   time.perf_counter() - t0)
@@ -307,6 +324,7 @@ class PetscBlockPoroSolver(_FieldSplitBase):
     amg, options, prefix (default ``poro_``), reuse : as :class:`PetscBlockContactSolver`
     """
 
+    takes_target = True          # solve() accepts Newton's KrylovTarget (its rtol: _forcing)
     n_u: int
     d: int
     n_l: int
@@ -397,7 +415,8 @@ class PetscBlockPoroSolver(_FieldSplitBase):
         if self._new_step:
             self.pressure_builds += 1
 
-    def solve(self, J, rhs) -> np.ndarray:
+    def solve(self, J, rhs, target=None) -> np.ndarray:
+        """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
         t0 = time.perf_counter()
         J = _canonical(J)
         nu, nl = self.n_u, self.n_l
@@ -417,7 +436,7 @@ class PetscBlockPoroSolver(_FieldSplitBase):
                                 np.tile(np.arange(d), nf * d) + np.repeat(np.arange(nf) * d, d * d),
                                 np.arange(0, nf * d * d + 1, d)), shape=(nl, nl))
             Ml = sp.hstack([Cu_s, Cl, sp.csr_matrix((nl, J.shape[0] - po))]).tocsr()
-        x = self._run(J, rhs, Ml, self._lump, nu, nl, po, new_step)
+        x = self._run(J, rhs, Ml, self._lump, nu, nl, po, new_step, target)
         self.seconds += time.perf_counter() - t0
         log.debug("PETSc block poro solver: %d GMRES iterations, %.2f s", self.iterations[-1],
                   time.perf_counter() - t0)

@@ -20,6 +20,7 @@ from ...cases.flow_exact import NAMES as FLOW_SOLUTIONS
 from ...cases.reference import REFERENCES
 from ...core.expressions import CONSTANTS, FUNCTIONS, VARIABLES
 from ...solvers.linear import BACKENDS
+from ...solvers.newton import FORCING
 from .flow import Flow
 from .geometry import CORNERPOINT, BoundaryPart, Fracture, Mesh, Region
 from .mechanics import Contact, Material, Mechanics, RegionMaterial
@@ -35,7 +36,8 @@ READS = {"mechanics": _COMMON | {"material", "materials", "mechanics", "contact"
          "flow": _COMMON | {"flow", "time", "exact"},
          "poromechanics": _COMMON | {"material", "materials", "mechanics", "contact", "flow", "time", "initial_state",
                                      "monitor"}}
-SOLVER_KEYS = {"mechanics": {"linear", "tolerance", "increment_tolerance", "max_iterations", "petsc"},
+SOLVER_KEYS = {"mechanics": {"linear", "tolerance", "increment_tolerance", "max_iterations", "forcing", "forcing_max",
+                               "petsc"},
                "flow": {"linear", "linear_tolerance", "petsc"}}
 SOLVER_KEYS["poromechanics"] = SOLVER_KEYS["mechanics"] | SOLVER_KEYS["flow"]
 _NAME = re.compile(r"[\w.-]+")
@@ -110,6 +112,11 @@ class Solver(Table):
     tolerance: Positive = Field(1e-8, description="mechanics: Newton residual tolerance (relative)")
     increment_tolerance: Positive = Field(1e-8, description="mechanics: Newton increment tolerance (relative)")
     max_iterations: number(ge=1, integer=True) = Field(50, description="mechanics: Newton iterations at most")
+    forcing: choice(*FORCING) = Field("eisenstat-walker", description="mechanics: tolerance of the block-amg/"
+                                      "block-petsc solves per Newton iteration, Eisenstat-Walker forcing in Newton's "
+                                      "weighted norm, or 'fixed' (1e-8 relative, plain 2-norm)")
+    forcing_max: number(gt=0, lt=1) = Field(1e-2, description="mechanics: loosest relative tolerance of an "
+                                            "Eisenstat-Walker linear solve")
     linear_tolerance: Positive = Field(1e-10, description="flow: relative residual of iterative backends")
     petsc: Annotated[dict, PlainValidator(_petsc_options), WithJsonSchema(
         {"type": "object", "additionalProperties": {"type": ["string", "number", "boolean"]}})] | None = Field(
