@@ -47,6 +47,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..core.errors import RunError
+from .linear import repeatable_random
 
 log = logging.getLogger("polypore")
 
@@ -58,8 +59,9 @@ def _amg(S, B=None):
 
     # splu on the coarsest level: pyamg's default dense pinv is recomputed per cycle in some
     # versions (2 s per V-cycle on C5's 28k-dof block instead of 0.05 s)
-    return pyamg.smoothed_aggregation_solver(S, B=B, strength="symmetric", max_coarse=1000,
-                                             coarse_solver="splu").aspreconditioner(cycle="V")
+    with repeatable_random():        # the set-up's random start vectors (linear.repeatable_random)
+        ml = pyamg.smoothed_aggregation_solver(S, B=B, strength="symmetric", max_coarse=1000, coarse_solver="splu")
+    return ml.aspreconditioner(cycle="V")
 
 
 @dataclass
