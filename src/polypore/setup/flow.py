@@ -253,10 +253,12 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
     xf = mesh.geometry.face_centroid[net.faces]
 
     def fracture_expr(key, with_t=True, extra=()):
-        e = parse(getattr(sec, key), f"flow.{key}", params, extra=FRACTURE_VARS + tuple(extra))
+        v = getattr(sec, key)
+        # a fracture's own conductivity without a [flow] one: the cubic law elsewhere
+        e = parse("d**3/12" if v is None else v, f"flow.{key}", params, extra=FRACTURE_VARS + tuple(extra))
         if not with_t and "t" in e.names:
             raise InputError(f"flow.{key}", f"expression {e.text!r} may not depend on t")
-        return e
+        return _per_fracture(e, key, spec.fractures, net, params, with_t, FRACTURE_VARS + tuple(extra))
 
     ap = fracture_expr("aperture")
     kfn = fracture_expr("normal_permeability", with_t=False)
@@ -270,11 +272,11 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
         bad = ~(vals > 0)
         if bad.any():
             i = int(np.flatnonzero(bad)[0])
-            raise InputError(f"flow.{key}", f"must be positive ({unit}) on every fracture face; {e.text!r} gives "
-                             f"{vals[i]:g} on fracture {net.names[net.fracture[i]]} at {np.round(xf[i], 6).tolist()} "
-                             f"(t = {t0:g} s)")
+            raise InputError(e.field_of(i), f"must be positive ({unit}) on every fracture face; "
+                             f"{e.text_of(i)!r} gives {vals[i]:g} on fracture {net.names[net.fracture[i]]} at "
+                             f"{np.round(xf[i], 6).tolist()} (t = {t0:g} s)")
     cond_law = None
-    if sec.fracture_conductivity is not None:
+    if sec.fracture_conductivity is not None or any(f.fracture_conductivity is not None for f in spec.fractures):
         ce = fracture_expr("fracture_conductivity", with_t=False, extra=("d",))
 
         def cond_law(a, _e=ce):
@@ -282,8 +284,9 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
 
         probe = cond_law(np.asarray(np.broadcast_to(ap(*cols, t0, **fvars), (net.n_faces,)), float))
         if not np.all(probe >= 0):
-            raise InputError("flow.fracture_conductivity", f"must give values ≥ 0 (m³); {ce.text!r} gives "
-                             f"{float(np.min(probe)):g}")
+            i = int(np.argmin(probe))
+            raise InputError(ce.field_of(i), f"must give values ≥ 0 (m³); {ce.text_of(i)!r} gives "
+                             f"{float(probe[i]):g}")
     exact_name = None if spec.exact is None else spec.exact.solution
     if exact_name is not None and int(exact_name[-2]) != d:
         raise InputError("exact.solution", f"{exact_name!r} is a {exact_name[-2]}D solution but the mesh is {d}D")
@@ -332,6 +335,55 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
                      sec.fracture_alpha, exact, on1,
                      {"fracture_variables": fvars, "tan_psi": float(np.tan(np.radians(sec.dilatancy_angle))),
                       "pressure_stabilisation": sec.pressure_stabilisation})
+
+
+class _PerFracture:
+    """A fracture expression with per-fracture replacements: called like an Expression on all the
+    fracture faces (arrays of n_ff values), it gives the ``[flow]`` value except on the faces of
+    fractures whose ``[[fractures]]`` block has its own (``aperture``, ``normal_permeability``,
+    ``fracture_conductivity``)."""
+
+    def __init__(self, base, key: str, parts: list, fracture: np.ndarray):
+        self.base, self.key, self.parts, self.fracture = base, key, parts, fracture
+        self.names = set(base.names).union(*(e.names for _, _, e in parts))
+        self.text = base.text if not parts else base.text + "; " + "; ".join(
+            f"{name}: {e.text}" for name, _, e in parts)
+        self.is_constant = False
+
+    def __call__(self, *args, **kw):
+        n = self.fracture.size
+        out = np.array(np.broadcast_to(np.asarray(self.base(*args, **kw), float), (n,)))
+        for _, sel, e in self.parts:
+            out[sel] = np.broadcast_to(np.asarray(e(*args, **kw), float), (n,))[sel]
+        return out
+
+    def field_of(self, i: int) -> str:
+        """The case-file field giving the value on fracture face i."""
+        for name, sel, _ in self.parts:
+            if sel[i]:
+                return f"fractures.{name}.{self.key}"
+        return f"flow.{self.key}"
+
+    def text_of(self, i: int) -> str:
+        for _, sel, e in self.parts:
+            if sel[i]:
+                return e.text
+        return self.base.text
+
+
+def _per_fracture(base, key: str, fractures, net, params, with_t: bool, extra) -> _PerFracture:
+    """``base`` (the [flow] expression of ``key``) with the [[fractures]] blocks' own values."""
+    parts = []
+    for f in fractures:
+        v = getattr(f, key, None)
+        if v is None or f.name not in net.names:
+            continue
+        field = f"fractures.{f.name}.{key}"
+        e = parse(v, field, params, extra=extra)
+        if not with_t and "t" in e.names:
+            raise InputError(field, f"expression {e.text!r} may not depend on t")
+        parts.append((f.name, net.fracture == net.names.index(f.name), e))
+    return _PerFracture(base, key, parts, net.fracture)
 
 
 def _boundary_part(mesh, name: str, field: str) -> None:

@@ -107,14 +107,67 @@ def tensor_field(value, field: str, dim: int, params):
     return fn
 
 
-def _elastic(m, field: str) -> tuple[float, float]:
-    """(E, ν) of a [material] table (the schema checked the ranges of E, ν or μ, λ)."""
+def _elastic(m, field: str, mesh=None) -> tuple:
+    """(E, ν) of a [material] table (the schema checked the ranges of E, ν or μ, λ): numbers, or
+    (n_cells,) arrays when E or ν come from the cell keywords of a corner-point grid."""
     if m.mu is not None:
         E, nu = m.mu * (3 * m.lam + 2 * m.mu) / (m.lam + m.mu), m.lam / (2 * (m.lam + m.mu))
     else:
-        E, nu = m.E, m.nu
+        E, nu = (_cell_array(getattr(m, k), k, m.keyword, field, mesh) for k in ("E", "nu"))
     check_elastic(E, nu, field)
     return E, nu
+
+
+_RANGE = {"E": (lambda v: (v > 0) & np.isfinite(v), "positive and finite (Pa)"),
+          "nu": (lambda v: (v > -1) & (v < 0.5), "in (−1, 0.5)")}
+
+
+def _cell_array(value, key: str, keyword, field: str, mesh):
+    """E or ν as given: a number; "grdecl:KW" -> (n_cells,) values of the grid's cell keyword KW;
+    a table {keyword value: number} -> (n_cells,) values by the cells' values of ``keyword``.
+    InputError naming ``field.key`` (or ``field.keyword``), the keyword, value and allowed values
+    and, for a bad cell value, the cell (i, j, k), 1-based as in the file."""
+    if not isinstance(value, (str, dict)):
+        return value
+    from .flow import _grid
+
+    grid, info = _grid(mesh, f"{field}.{key}")
+    known = ", ".join(sorted(grid.properties)) or "none"
+    if isinstance(value, str):
+        kw = value.split(":", 1)[1].upper()
+        if kw not in grid.properties:
+            raise InputError(f"{field}.{key}", f"{value!r}: {grid.source} has no cell keyword {kw}; its cell "
+                             f"keywords are {known}")
+        out = info.cell_values(grid.properties[kw]).astype(float)
+        ok, allowed = _RANGE[key]
+        bad = ~ok(out)
+        if bad.any():
+            c = int(np.flatnonzero(bad)[0])
+            i, j, k = (int(a) + 1 for a in info.cell_ijk[c])
+            raise InputError(f"{field}.{key}", f"{value!r}: {kw} is {out[c]:g} in cell ({i}, {j}, {k}) "
+                             f"({int(bad.sum())} cell(s)); {key} must be {allowed}")
+        return out
+    kw = keyword.upper()
+    if kw not in grid.properties:
+        raise InputError(f"{field}.keyword", f"{grid.source} has no cell keyword {kw}; its cell keywords are {known}")
+    tag = info.cell_values(grid.properties[kw]).astype(float)
+    if not np.all(tag == np.round(tag)):
+        c = int(np.flatnonzero(tag != np.round(tag))[0])
+        i, j, k = (int(a) + 1 for a in info.cell_ijk[c])
+        raise InputError(f"{field}.keyword", f"{kw} must hold integers (a region number per cell), got {tag[c]:g} "
+                         f"in cell ({i}, {j}, {k})")
+    keys = np.array(sorted(value), float)
+    vals = np.array([value[int(k)] for k in keys])
+    pos = np.minimum(np.searchsorted(keys, tag), keys.size - 1)
+    miss = keys[pos] != tag
+    if miss.any():
+        absent = sorted({int(v) for v in np.unique(tag[miss])})
+        c = int(np.flatnonzero(miss)[0])
+        i, j, k = (int(a) + 1 for a in info.cell_ijk[c])
+        raise InputError(f"{field}.{key}", f"no value for {kw} = {', '.join(map(str, absent))} (e.g. cell ({i}, {j}, "
+                         f"{k})); the table gives {kw} = {', '.join(str(int(a)) for a in keys)}; the grid's active "
+                         f"cells have {kw} = {', '.join(str(int(a)) for a in np.unique(tag))}")
+    return vals[pos]
 
 
 def _materials(spec, fm: FracturedMesh):
@@ -129,14 +182,16 @@ def _materials(spec, fm: FracturedMesh):
                 raise InputError(f"{field}.region", f"unknown region {m.region!r}; the mesh has "
                                  f"{', '.join(mesh.region_names)}")
             sel = mesh.cell_region == mesh.region_names.index(m.region)
-            E[sel], nu[sel] = _elastic(m, field)
+            e, n = _elastic(m, field, mesh)
+            E[sel] = e[sel] if np.ndim(e) else e
+            nu[sel] = n[sel] if np.ndim(n) else n
         if np.isnan(E).any():
             missing = sorted({mesh.region_names[r] for r in np.unique(mesh.cell_region[np.isnan(E)])})
             raise InputError("materials", f"no material for region(s) {', '.join(missing)}")
     else:
         if spec.material is None:
             raise InputError("material", "is required: give E (Pa) and nu, e.g. [material] E = 1e10, nu = 0.25")
-        E[:], nu[:] = _elastic(spec.material, "material")
+        E[:], nu[:] = _elastic(spec.material, "material", mesh)
     return E, nu
 
 
@@ -186,7 +241,7 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
                                                                 params)
     disp, trac = _boundary(sec, mesh, params, exact)
     c = spec.contact or Contact()
-    friction, threshold = _contact_values(c, fm, params)
+    friction, threshold = _contact_values(c, fm, params, spec.fractures)
     if isinstance(exact, SingleCrack):
         if np.ptp(friction) > 0:
             raise InputError("contact.friction", "the single-crack analytic solution needs one friction coefficient")
@@ -230,31 +285,49 @@ def _boundary(sec: Mechanics, mesh, params, exact):
     return disp, trac
 
 
-def _contact_values(c: Contact, fm: FracturedMesh, params):
-    """(friction, threshold) per fracture face, checked finite and ≥ 0."""
+def _contact_values(c: Contact, fm: FracturedMesh, params, fractures=()):
+    """(friction, threshold) per fracture face (n_ff,), checked finite and ≥ 0.
+
+    ``fractures`` are the case's ``[[fractures]]`` tables: a fracture's own ``friction`` or
+    ``threshold`` replaces the ``[contact]`` value on its faces.
+    """
     mesh, net = fm.mesh, fm.network
     D = tip_distance(fm)
     Dfin = np.where(np.isfinite(D), D, 1e30)
     xf = mesh.geometry.face_centroid[net.faces]
     cols = {k: xf[:, i] for i, k in enumerate("xyz"[:mesh.dim])}
+    own = {f.name: f for f in fractures}
 
-    def face_values(key, value):
-        e = parse(value, f"contact.{key}", params, extra=("D",))
-        out = np.broadcast_to(e(**cols, D=Dfin), (net.n_faces,)).astype(float)
-        if np.any(out < 0):
-            raise InputError(f"contact.{key}", f"must be ≥ 0 on every fracture face, got {value!r} "
-                             f"(min {out.min():g})")
+    def face_values(key, value, field, sel=slice(None)):
+        e = parse(value, field, params, extra=("D",))
+        out = np.broadcast_to(e(**cols, D=Dfin), (net.n_faces,)).astype(float)[sel]
+        if not np.all(np.isfinite(out)) or np.any(out < 0):
+            raise InputError(field, f"must be finite and ≥ 0 on every fracture face, got {value!r} "
+                             f"(min {np.nanmin(out) if out.size else 0:g})")
         return out
 
-    # without fracture faces there is no contact: the case needs no [contact] table
-    if c.law == "coulomb" and net.n_faces and c.friction is None:
-        raise InputError("contact.friction", "is required for the Coulomb law (a number ≥ 0 or an expression of "
-                         "x, y, z and D, the distance to the fracture's nearest tip)")
-    if c.law == "tresca" and net.n_faces and c.threshold is None:
-        raise InputError("contact.threshold", "is required for the Tresca law (Pa, a number ≥ 0 or an expression "
-                         "of x, y, z and D)")
-    return (face_values("friction", 0.0 if c.friction is None else c.friction),
-            face_values("threshold", 0.0 if c.threshold is None else c.threshold))
+    def values(key, law, what):
+        out = np.zeros(net.n_faces)
+        given = getattr(c, key)
+        missing = np.ones(net.n_faces, bool)
+        for j, name in enumerate(net.names):
+            v = getattr(own.get(name), key, None)
+            if v is not None:
+                sel = net.fracture == j
+                out[sel] = face_values(key, v, f"fractures.{name}.{key}", sel)
+                missing &= ~sel
+        if given is not None:
+            out[missing] = face_values(key, given, f"contact.{key}", missing)
+        elif c.law == law and missing.any():
+            # without fracture faces there is no contact: the case needs no [contact] table
+            rest = sorted({net.names[j] for j in np.unique(net.fracture[missing])})
+            raise InputError(f"contact.{key}", f"is required for the {law.capitalize()} law {what}, or give "
+                             f"`{key}` in the [[fractures]] block of {', '.join(rest)}")
+        return out
+
+    return (values("friction", "coulomb", "(a number ≥ 0 or an expression of x, y, z and D, the distance to the "
+                   "fracture's nearest tip)"),
+            values("threshold", "tresca", "(Pa, a number ≥ 0 or an expression of x, y, z and D)"))
 
 
 def _penny_table(ex, fm: FracturedMesh, params, E: float, nu: float) -> PennyCrack:

@@ -271,19 +271,35 @@ def cornerpoint_of(mesh):
     return _CORNERPOINT.get(mesh)
 
 
+def grdecl_path(file: str, base_dir: str | None) -> Path:
+    """The GRDECL file of ``mesh.file``: absolute, or relative to the case file's folder
+    ``base_dir``; a built-in case (no folder) takes it from the package's case data, where
+    its grids are shipped, and so does a copy of a built-in case (its ``case.toml`` in a results
+    folder) when the folder has no such file. InputError naming ``mesh.file`` if it does not exist."""
+    from importlib import resources
+
+    from .casefile import CASES, DATA
+
+    path = Path(file)
+    if path.is_absolute():
+        candidates = [path]
+    else:
+        shipped = Path(str(resources.files(CASES) / DATA)) / path
+        candidates = [shipped] if base_dir is None else [Path(base_dir) / path, shipped]
+    for c in candidates:
+        if c.is_file():
+            return c
+    raise InputError("mesh.file", f"GRDECL file {str(candidates[0])!r} does not exist (a relative path is taken from "
+                     "the case file's folder)")
+
+
 def _cornerpoint_grid(spec):
     """The case's corner-point grid: read from the GRDECL file or generated."""
     from ..mesh.cornerpoint import FaultSpec, generate_grid, read_grdecl
 
     m = spec.mesh
     if m.generator == "grdecl":
-        path = Path(m.file)
-        if not path.is_absolute():
-            path = Path(spec.base_dir or ".") / path
-        if not path.is_file():
-            raise InputError("mesh.file", f"GRDECL file {str(path)!r} does not exist (a relative path is taken from "
-                             "the case file's folder)")
-        return read_grdecl(path)
+        return read_grdecl(grdecl_path(m.file, spec.base_dir))
     nx, ny, nz = (int(c) for c in m.cells)
     faults = [FaultSpec(f.axis, int(f.index), float(f.throw), start=None if f.start is None else int(f.start),
                         stop=None if f.stop is None else int(f.stop), name=f.name) for f in m.faults]

@@ -22,7 +22,7 @@ from ...core.expressions import CONSTANTS, FUNCTIONS, VARIABLES
 from ...solvers.linear import BACKENDS
 from ...solvers.newton import FORCING
 from .flow import Flow
-from .geometry import CORNERPOINT, BoundaryPart, Fracture, Mesh, Region
+from .geometry import CORNERPOINT, FRACTURE_DATA, BoundaryPart, Fracture, Mesh, Region
 from .mechanics import Contact, Material, Mechanics, RegionMaterial
 from .types import (ExprTensor, Number, NonNegative, Positive, Table, Text, choice, fail, finite, is_number, number,
                     show, vector)
@@ -280,6 +280,7 @@ class Case(Table):
         self._geometry()
         if self.material is not None and self.materials:
             fail("give [material] (uniform) or [[materials]] (per region), not both", key="materials")
+        self._cell_materials()
         self._exact_values()
         if self.flow is not None:
             self._steady_or_transient()
@@ -305,9 +306,10 @@ class Case(Table):
                     fail(f"{item.name!r} is given twice; names must differ", key=(key, i, "name"))
                 seen.add(item.name)
         cornerpoint = self.mesh.generator in CORNERPOINT
+        self._fracture_data()
         for i, f in enumerate(self.fractures):
             if cornerpoint:
-                for k in sorted(f.given() - {"name", "fault"}):
+                for k in sorted(f.given() - {"name", "fault"} - set(FRACTURE_DATA)):
                     fail("does not apply to a fault of a corner-point grid (its faces come from the grid; select "
                          "it by `fault`)", key=("fractures", i, k))
                 continue
@@ -315,7 +317,7 @@ class Case(Table):
                 fail("applies to corner-point grids only (generator = \"grdecl\" or \"cornerpoint\")",
                      key=("fractures", i, "fault"))
             if file_mesh:
-                for k in sorted(f.given() - {"name", "group", "normal"}):
+                for k in sorted(f.given() - {"name", "group", "normal"} - set(FRACTURE_DATA)):
                     fail("does not apply to a fracture of a mesh file (its faces are the physical group `group`)",
                          key=("fractures", i, k))
                 continue
@@ -343,6 +345,38 @@ class Case(Table):
             for name, x in self.monitor.points.items():
                 if len(x) != dim:
                     fail(f"must have {dim} coordinates (m), got {x}", key=("monitor", "points", name))
+
+    def _cell_materials(self):
+        """E and ν from the grid's cell keywords ("grdecl:KW", tables by keyword value) need a
+        corner-point grid."""
+        if self.mesh.generator in CORNERPOINT:
+            return
+        blocks = ([("material",)] if self.material is not None else []) + [
+            ("materials", i) for i in range(len(self.materials))]
+        for where in blocks:
+            m = self.material if where == ("material",) else self.materials[where[1]]
+            for key in ("E", "nu"):
+                if isinstance(getattr(m, key), (str, dict)):
+                    fail("takes cell values from a corner-point grid's keywords, but the mesh is not one (mesh."
+                         "generator = \"grdecl\" or \"cornerpoint\"); give a number", key=where + (key,))
+
+    def _fracture_data(self):
+        """Per-fracture friction/threshold need the matching contact law, flow data a model with flow."""
+        physics_ = self.physics
+        law = (self.contact.law if self.contact is not None else "coulomb")
+        for i, f in enumerate(self.fractures):
+            for key in sorted(f.given() & set(FRACTURE_DATA)):
+                if FRACTURE_DATA[key] == "flow" and physics_ == "mechanics":
+                    fail("is flow data; this is a mechanics case (no [flow] table): remove it",
+                         key=("fractures", i, key))
+                if FRACTURE_DATA[key] == "contact":
+                    if physics_ == "flow":
+                        fail("is contact data; this is a flow case (no mechanics): remove it",
+                             key=("fractures", i, key))
+                    need = "coulomb" if key == "friction" else "tresca"
+                    if law != need:
+                        fail(f"applies to contact.law = {need!r} only; this case has law = {law!r}",
+                             key=("fractures", i, key))
 
     def _exact_values(self):
         if self.exact is not None:

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 from pydantic import Field, model_validator
 
-from .types import Positive, Table, Text, choice, fail, number, points, vector
+from .types import Expr, Positive, Table, Text, choice, fail, number, points, vector
 
 # polypore.mesh.generators.mirror.MODES (importing it would load gmsh; tests/test_schema.py compares)
 MIRROR_MODES = ("none", "tips", "fractures")
@@ -164,8 +164,16 @@ class Mesh(Table):
         return None if self.lower is None else len(self.lower)
 
 
+# keys of [[fractures]] that give the fracture's own contact and flow data (every kind of fracture)
+FRACTURE_DATA = {"friction": "contact", "threshold": "contact", "aperture": "flow", "normal_permeability": "flow",
+                 "fracture_conductivity": "flow"}
+
+
 class Fracture(Table):
-    """``[[fractures]]``: a 2D polyline or 3D planar polygon, or in 3D a regular polygon."""
+    """``[[fractures]]``: a 2D polyline or 3D planar polygon, or in 3D a regular polygon, a physical
+    group of a mesh file or a fault of a corner-point grid; optionally with its own contact and
+    flow data (``friction``, ``threshold``, ``aperture``, ``normal_permeability``,
+    ``fracture_conductivity``), which replace the ``[contact]`` / ``[flow]`` values on its faces."""
 
     name: Text = Field(description="name of the fracture (results and --set address it by name)")
     vertices: points("points [x, y] or [x, y, z]", 2) | None = Field(
@@ -178,6 +186,17 @@ class Fracture(Table):
     group: Text | None = Field(None, description="file meshes: the physical group (default: name)")
     fault: Text | None = Field(None, description="corner-point grids: the fault selected as this contact "
                                "surface (default: name); unselected faults stay bonded")
+    # per-fracture data: on this fracture's faces they replace the [contact] / [flow] value
+    friction: Expr | None = Field(None, description="coulomb: friction coefficient F ≥ 0 on this fracture "
+                                  "(expression of x, y, z, D), instead of contact.friction")
+    threshold: Expr | None = Field(None, description="tresca: threshold g ≥ 0 (Pa) on this fracture, instead of "
+                                   "contact.threshold")
+    aperture: Expr | None = Field(None, description="flow: d_f (m) > 0 on this fracture (expression of x, y, z, t, "
+                                  "D, L), instead of flow.aperture")
+    normal_permeability: Expr | None = Field(None, description="flow: K_fn (m²) > 0 on this fracture (x, y, z, "
+                                             "D, L), instead of flow.normal_permeability")
+    fracture_conductivity: Expr | None = Field(None, description="flow: C_f (m³) of the aperture d on this "
+                                               "fracture, instead of flow.fracture_conductivity (default d³/12)")
 
     @model_validator(mode="after")
     def _shape(self):

@@ -7,23 +7,84 @@ parsed when the case is set up on its mesh; here they are checked to be a finite
 
 from __future__ import annotations
 
-from pydantic import Field, model_validator
+import re
+from typing import Any, Annotated
+
+from pydantic import Field, PlainValidator, WithJsonSchema, model_validator
+from pydantic_core import PydanticCustomError
 
 from ...models.contact import LAWS
-from .types import Expr, ExprTensor, ExprVector, ExprVectorOrExact, Positive, Table, Text, choice, fail, number
+from .types import (Expr, ExprTensor, ExprVector, ExprVectorOrExact, Positive, Table, Text, choice, fail, finite,
+                    is_number, number, show)
+
+# corner-point grids: a material value from a cell keyword of the grid ("grdecl:YMODULUS")
+GRDECL_KEYWORD = re.compile(r"grdecl:([A-Za-z][A-Za-z0-9_]{0,7})")
+_NUMBERS = {"E": (number(gt=0), "a positive number (Pa)"), "nu": (number(gt=-1, lt=0.5), "a number in (−1, 0.5)")}
+
+
+def _cell_value(name: str):
+    """E or ν: a number; on corner-point grids also "grdecl:KEYWORD" (one value per cell) or a
+    table `value of [material] keyword` -> number (e.g. { 0 = 2e10, 1 = 1e10 } by FACIES)."""
+    number_type, what = _NUMBERS[name]
+    plain = number_type.__metadata__[0].func               # the number's own check (and its messages)
+    number_schema = number_type.__metadata__[1].json_schema
+
+    def check(v):
+        if isinstance(v, str):
+            if GRDECL_KEYWORD.fullmatch(v.strip()):
+                return v.strip()
+            if not v.strip().lower().startswith("grdecl"):
+                return plain(v)                            # "expected a positive number, got '1e9'"
+            fail(f"must be {what}, \"grdecl:KEYWORD\" (a cell keyword of the corner-point grid, e.g. "
+                 f"\"grdecl:YOUNGMOD\") or a table by the values of `keyword`; got {show(v)}")
+        if isinstance(v, dict):
+            if not v:
+                fail(f"expected a table keyword value = {what}, got an empty table")
+            out = {}
+            for k, x in v.items():
+                if not re.fullmatch(r"-?\d+", str(k).strip()):
+                    fail(f"table keys are the integer values of `keyword` (e.g. 0, 1, 2), got {show(k)}", key=k)
+                if not (is_number(x) and finite(x)):
+                    fail(f"must be {what}, got {show(x)}", key=k)
+                try:
+                    out[int(str(k).strip())] = plain(x)
+                except PydanticCustomError as exc:
+                    fail(exc.context["message"], key=k)
+            return out
+        return plain(v)
+
+    schema = {"anyOf": [number_schema, {"type": "string", "pattern": f"^{GRDECL_KEYWORD.pattern}$"},
+                        {"type": "object", "additionalProperties": number_schema, "minProperties": 1}]}
+    return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
 
 
 class Material(Table):
-    """``[material]``: isotropic elasticity, E and ν or the Lamé parameters μ and λ."""
+    """``[material]``: isotropic elasticity, E and ν or the Lamé parameters μ and λ.
 
-    E: Positive | None = Field(None, description="Young's modulus (Pa)")
-    nu: number(gt=-1, lt=0.5) | None = Field(None, description="Poisson's ratio in (−1, 0.5)")
+    On corner-point grids E and ν may vary per cell: ``"grdecl:KEYWORD"`` takes them from a cell
+    keyword of the grid (Pa for E), and a table ``{ 0 = ..., 1 = ... }`` gives them per value of
+    the integer cell keyword ``keyword`` (FACIES, SATNUM, FIPNUM, ...).
+    """
+
+    E: _cell_value("E") | None = Field(None, description="Young's modulus (Pa); corner-point grids: "
+                                       "\"grdecl:KEYWORD\" or a table by the values of `keyword`")
+    nu: _cell_value("nu") | None = Field(None, description="Poisson's ratio in (−1, 0.5); corner-point grids: "
+                                         "\"grdecl:KEYWORD\" or a table by the values of `keyword`")
+    keyword: Text | None = Field(None, description="corner-point grids: the integer cell keyword (e.g. FACIES) "
+                                 "whose values key the E and nu tables")
     mu: Positive | None = Field(None, description="shear modulus μ (Pa), with lambda")
     lam: number() | None = Field(None, alias="lambda", description="Lamé's first parameter λ (Pa) > −2μ/3, with mu")
 
     @model_validator(mode="after")
     def _one_pair(self):
         given = self.given()
+        tables = [k for k in ("E", "nu") if isinstance(getattr(self, k), dict)]
+        if tables and self.keyword is None:
+            fail(f"is required with a table of {tables[0]} by keyword value: the integer cell keyword of the "
+                 "grid (e.g. keyword = \"FACIES\")", key="keyword")
+        if self.keyword is not None and not tables:
+            fail("applies to tables of E or nu by keyword value (E = { 0 = 2e10, 1 = 1e10 }); neither is one",
+                 key="keyword")
         young, lame = given & {"E", "nu"}, given & {"mu", "lambda"}
         if young and lame:
             fail(f"give E and nu, or mu and lambda, not both pairs; got {', '.join(sorted(given))}",
