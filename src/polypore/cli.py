@@ -76,16 +76,42 @@ def _signals_raise():
             signal.signal(sig, handler)
 
 
-@contextmanager
-def _output(args, default_name: str):
-    """Claim the output folder (``--out`` or results/<default_name>) for the block: yields
-    (folder, staging folder); see :func:`polypore.io.atomic.run_directory`."""
-    out = Path(args.out) if args.out else Path("results") / default_name
+def _check_case_folder(args, out: Path) -> None:
     case = Path(args.case)
     if args.force and case.is_file() and out.resolve() in case.resolve().parents:
         # the folder is replaced as a whole: it must not hold the case being run
         raise InputError("--out", f"{str(out)!r} holds the case file {args.case!r}, which --force would delete; "
                          "choose another --out")
+
+
+def _check_output(args, out: Path) -> None:
+    from .io.atomic import check_output_directory
+
+    _check_case_folder(args, out)
+    check_output_directory(out, args.force)
+
+
+@contextmanager
+def _output(args, default_name: str):
+    """Claim the output folder (``--out`` or results/<default_name>) for the block: yields
+    (folder, staging folder); see :func:`polypore.io.atomic.run_directory`.
+
+    In a distributed run rank 0 writes the results; the other ranks, which compute the same
+    replicated results, write into a temporary folder that is deleted (docs/parallel.md).
+    """
+    from .solvers.distributed import context
+
+    out = Path(args.out) if args.out else Path("results") / default_name
+    ctx = context()
+    if ctx is not None and ctx.size > 1:
+        ctx.bcast_call(_check_output, args, out)      # rank 0's verdict on every rank
+        if not ctx.root:
+            import tempfile
+
+            with tempfile.TemporaryDirectory(prefix=f"polypore-rank{ctx.rank}-") as tmp:
+                yield out, Path(tmp)
+            return
+    _check_case_folder(args, out)
     with run_directory(out, force=args.force) as stage:
         yield out, stage
         if _SIGNALLED:
@@ -138,6 +164,8 @@ def cmd_run(args) -> int:
     _check_limits(args, case)
     with _output(args, case.name) as (out, stage):
         summary = run_case(case, stage)
+    if not _is_root():
+        return 0
     steps = summary["steps"]
     st = steps[-1] if steps else {}
     parts = [f"{summary['mesh']['cells']} cells, {summary['mesh']['unknowns']} unknowns"]
@@ -155,6 +183,13 @@ def cmd_run(args) -> int:
         print(f"  {name} = {v:.4e}")
     print(f"wrote {out}/")
     return 0
+
+
+def _is_root() -> bool:
+    from .solvers.distributed import context
+
+    ctx = context()
+    return ctx is None or ctx.root
 
 
 def cmd_convergence(args) -> int:
@@ -251,6 +286,28 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _start_distributed(args) -> bool:
+    """Under mpiexec (docs/parallel.md): start the distributed mode; False (with a one-line
+    message) when more than one rank was started without petsc4py/mpi4py. One rank without them
+    runs serially."""
+    from .solvers.distributed import activate, launched_ranks
+
+    n = launched_ranks()
+    if n < 1 or args.func in (cmd_cases, cmd_schema):
+        return True
+    try:
+        ctx = activate()
+    except InputError as exc:
+        if n == 1:
+            return True
+        print(f"polypore: error: {exc}", file=sys.stderr)
+        return False
+    if ctx.rank > 0:
+        log.setLevel(logging.ERROR)           # rank 0 reports; the others compute the same
+    log.info("distributed run on %d MPI rank%s (PETSc)", ctx.size, "" if ctx.size == 1 else "s")
+    return True
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -258,6 +315,8 @@ def main(argv=None) -> int:
         parser.print_help()
         return 2
     _setup_logging(args.quiet)
+    if not _start_distributed(args):
+        return 2
     try:
         with _signals_raise():
             return args.func(args)

@@ -1,0 +1,99 @@
+"""Compare the Newton histories and contact states of two ``polypore run`` result folders (e.g. 1 and
+2 MPI ranks; docs/parallel.md "Distributed runs").
+
+    python benchmarks/mpi_compare.py results/c4-n1 results/c4-n2
+
+Compared, step by step and iteration by iteration (summary.json ``steps[*].history``):
+
+* the scaled Newton residual (max block norm) and every block norm: relative difference
+  |a − b| / max(|a|, |b|), reported over the iterates above ``floor`` (default 1e-10, below which
+  the values are round-off of converged iterates) and, separately, as an absolute difference
+  against the step's first residual;
+* the open/stick/slip counts of every iterate, and the final contact state of every fracture face
+  (fractures.csv's ``state``);
+* the cell/face pressures or jumps written in fractures.csv (max relative difference).
+
+Prints a JSON report; exit status 1 when the iteration counts or active sets differ or a residual
+above the floor differs by more than ``--rtol`` (default 1e-8).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import sys
+from pathlib import Path
+
+
+def _rows(folder: Path) -> list[dict]:
+    with open(folder / "fractures.csv") as f:
+        return list(csv.DictReader(f))
+
+
+def compare(a: Path, b: Path, floor: float = 1e-10) -> dict:
+    sa, sb = (json.loads((Path(x) / "summary.json").read_text()) for x in (a, b))
+    out = {"steps": [len(sa["steps"]), len(sb["steps"])], "iterations": [], "same_iterations": True,
+           "same_counts": True, "max_rel_residual": 0.0, "max_rel_block": 0.0, "max_abs_vs_first": 0.0,
+           "worst": None}
+    if len(sa["steps"]) != len(sb["steps"]):
+        out["same_iterations"] = False
+        return out
+    for k, (x, y) in enumerate(zip(sa["steps"], sb["steps"])):
+        hx, hy = x.get("history", []), y.get("history", [])
+        out["iterations"].append([len(hx), len(hy)])
+        if len(hx) != len(hy):
+            out["same_iterations"] = False
+            continue
+        r0 = max(hx[0]["residual"], 1e-300) if hx else 1.0
+        for it, (p, q) in enumerate(zip(hx, hy)):
+            for key in ("open", "stick", "slip"):
+                if p.get(key) != q.get(key):
+                    out["same_counts"] = False
+            for key, v in p.items():
+                if key in ("iteration", "increment", "step", "open", "stick", "slip") or not isinstance(v, float):
+                    continue
+                w = q[key]
+                big = max(abs(v), abs(w))
+                out["max_abs_vs_first"] = max(out["max_abs_vs_first"], abs(v - w) / r0)
+                if big > floor:
+                    rel = abs(v - w) / big
+                    name = "max_rel_residual" if key == "residual" else "max_rel_block"
+                    if rel > out[name]:
+                        out[name] = rel
+                        if key == "residual":
+                            out["worst"] = {"step": k, "iteration": it, "a": v, "b": w}
+    ra, rb = _rows(Path(a)), _rows(Path(b))
+    out["fracture_rows"] = [len(ra), len(rb)]
+    out["same_states"] = len(ra) == len(rb) and all(p["state"] == q["state"] for p, q in zip(ra, rb))
+    worst = 0.0
+    if len(ra) == len(rb):
+        for col in ra[0] if ra else []:
+            try:
+                va = [float(r[col]) for r in ra]
+                vb = [float(r[col]) for r in rb]
+            except ValueError:
+                continue
+            scale = max(max(abs(v) for v in va), 1e-300)
+            worst = max(worst, max(abs(p - q) for p, q in zip(va, vb)) / scale)
+    out["max_rel_fracture_fields"] = worst
+    return out
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p.add_argument("a")
+    p.add_argument("b")
+    p.add_argument("--floor", type=float, default=1e-10)
+    p.add_argument("--rtol", type=float, default=1e-8)
+    args = p.parse_args(argv)
+    rep = compare(Path(args.a), Path(args.b), args.floor)
+    print(json.dumps(rep, indent=1))
+    ok = rep["same_iterations"] and rep["same_counts"] and rep.get("same_states", False) and \
+        rep["max_rel_residual"] <= args.rtol and not math.isnan(rep["max_rel_residual"])
+    return 0 if ok else 1
+
+
+if __name__ == "__main__":
+    sys.exit(main())
