@@ -11,7 +11,8 @@ Compared, step by step and iteration by iteration (summary.json ``steps[*].histo
   against the step's first residual;
 * the open/stick/slip counts of every iterate, and the final contact state of every fracture face
   (fractures.csv's ``state``);
-* the cell/face pressures or jumps written in fractures.csv (max relative difference).
+* the fields of fractures.csv (jumps, tractions, pressures) and summary.json's boundary fluxes
+  (max difference relative to the largest value).
 
 Prints a JSON report; exit status 1 when the iteration counts or active sets differ or a residual
 above the floor differs by more than ``--rtol`` (default 1e-8).
@@ -78,7 +79,21 @@ def compare(a: Path, b: Path, floor: float = 1e-10) -> dict:
             scale = max(max(abs(v) for v in va), 1e-300)
             worst = max(worst, max(abs(p - q) for p, q in zip(va, vb)) / scale)
     out["max_rel_fracture_fields"] = worst
+    fa, fb = _numbers(sa.get("fluxes")), _numbers(sb.get("fluxes"))
+    if fa and len(fa) == len(fb):
+        scale = max(max(abs(v) for v in fa), 1e-300)
+        out["max_rel_fluxes"] = max(abs(p - q) for p, q in zip(fa, fb)) / scale
     return out
+
+
+def _numbers(tree) -> list[float]:
+    """The numbers of a JSON tree, depth first (dict keys sorted), without the balance residuals
+    (round-off measures, not results)."""
+    if isinstance(tree, dict):
+        return [v for k in sorted(tree) if "residual" not in k and "relative" not in k for v in _numbers(tree[k])]
+    if isinstance(tree, list):
+        return [v for x in tree for v in _numbers(x)]
+    return [float(tree)] if isinstance(tree, (int, float)) and not isinstance(tree, bool) else []
 
 
 def main(argv=None) -> int:
