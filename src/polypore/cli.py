@@ -164,6 +164,7 @@ def cmd_run(args) -> int:
     _check_limits(args, case)
     with _output(args, case.name) as (out, stage):
         summary = run_case(case, stage)
+    peaks = _rank_peaks()
     if not _is_root():
         return 0
     steps = summary["steps"]
@@ -177,12 +178,25 @@ def cmd_run(args) -> int:
         parts.append(f"{n} Newton iteration{'' if n == 1 else 's'}")
         parts.append(f"{'at the end ' if len(steps) > 1 else ''}residual {st['residual']:.2e}, "
                      f"faces open {st['open']}, stick {st['stick']}, slip {st['slip']}")
-    parts.append(f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB")
+    parts.append(f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB"
+                 + (f" (ranks: {'/'.join(f'{p:.0f}' for p in peaks)} MB)" if peaks else ""))
     print(f"case {case.name}: " + "; ".join(parts))
     for name, v in summary.get("errors", {}).items():
         print(f"  {name} = {v:.4e}")
     print(f"wrote {out}/")
     return 0
+
+
+def _rank_peaks() -> list[float] | None:
+    """Peak resident memory of every rank (MB) on rank 0 of a distributed run; None otherwise."""
+    from .solvers.distributed import context
+
+    ctx = context()
+    if ctx is None or ctx.size == 1:
+        return None
+    from .runs.common import peak_memory_mb
+
+    return ctx.comm.gather(peak_memory_mb(), root=0)
 
 
 def _is_root() -> bool:
