@@ -90,9 +90,9 @@ def _polypore(args, out, ranks=None):
 
 @pytest.mark.parametrize("case", list(RUNS))
 def test_two_ranks_repeat_the_serial_newton_history(tmp_path, case):
-    """Same Newton iterations, residuals (1e-8 relative above 1e-6, 1e-9 absolute: the norms are scaled), open/stick/slip
-    counts of every iterate, final contact states and fracture fields on 2 ranks as serially; rank 0
-    writes the serial run's files."""
+    """Same Newton iterations, residuals (1e-8 relative above 1e-6, 1e-9 absolute: the norms are
+    scaled), open/stick/slip counts of every iterate, final contact states and fracture fields on 2
+    ranks as serially; rank 0 writes the serial run's files."""
     pytest.importorskip("petsc4py.PETSc")
     pytest.importorskip("mpi4py")
     pytest.importorskip("pymetis")
