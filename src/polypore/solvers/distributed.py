@@ -100,7 +100,8 @@ class Distributed:
 
         parts = self.bcast_call(partition_cells, mesh, self.size)
         counts = np.bincount(parts, minlength=self.size)
-        log.info("partition: %d cells on %d ranks (%s cells per rank)", mesh.n_cells, self.size,
+        log.info("partition: %d cells on %d rank%s (%s cells per rank)", mesh.n_cells, self.size,
+                 "" if self.size == 1 else "s",
                  "/".join(str(int(c)) for c in counts))
         self._parts[key] = (mesh, parts)
         return parts
