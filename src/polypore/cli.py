@@ -199,6 +199,21 @@ def _rank_peaks() -> list[float] | None:
     return ctx.comm.gather(peak_memory_mb(), root=0)
 
 
+def _abort_other_ranks() -> None:
+    """A bug on one rank of a distributed run: print it and abort every rank (MPI_Abort) rather than
+    leave the others waiting in a collective operation."""
+    from .solvers.distributed import context
+
+    ctx = context()
+    if ctx is None or ctx.size == 1:
+        return
+    import traceback
+
+    traceback.print_exc()
+    sys.stderr.flush()
+    ctx.comm.Abort(1)
+
+
 def _is_root() -> bool:
     from .solvers.distributed import context
 
@@ -335,11 +350,16 @@ def main(argv=None) -> int:
         with _signals_raise():
             return args.func(args)
     except InputError as exc:
-        print(f"polypore: error: {exc}", file=sys.stderr)
+        if _is_root():                  # distributed: every rank raises the same, rank 0 reports
+            print(f"polypore: error: {exc}", file=sys.stderr)
         return 2
     except PolyporeError as exc:
-        print(f"polypore: run failed: {exc}", file=sys.stderr)
+        if _is_root():
+            print(f"polypore: run failed: {exc}", file=sys.stderr)
         return exc.exit_status
+    except Exception:
+        _abort_other_ranks()
+        raise
     except (KeyboardInterrupt, Terminated) as exc:
         # one line, no traceback: the reason and, once the output folder was claimed, where it is recorded
         where = getattr(exc, "failed_json", None)

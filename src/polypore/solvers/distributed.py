@@ -84,9 +84,9 @@ class Distributed:
                 blob = _dumps(out)
             except Exception as exc:       # noqa: BLE001 — re-raised on every rank below
                 err = exc
-        err = self.comm.bcast(err, root=0)
+        err = self.comm.bcast(None if err is None else _portable_error(err), root=0)
         if err is not None:
-            raise err
+            raise _rebuilt_error(err)
         blob = self.comm.bcast(blob, root=0)
         return out if self.root else pickle.loads(blob)
 
@@ -105,6 +105,20 @@ class Distributed:
                  "/".join(str(int(c)) for c in counts))
         self._parts[key] = (mesh, parts)
         return parts
+
+
+def _portable_error(exc: BaseException) -> tuple:
+    """An exception as (class, args, attributes): polypore's errors take (field, message) in their
+    constructor, which pickle's default (class(*args)) does not call right."""
+    return type(exc), exc.args, dict(getattr(exc, "__dict__", {}))
+
+
+def _rebuilt_error(err: tuple) -> BaseException:
+    cls, args, attrs = err
+    exc = cls.__new__(cls)
+    exc.args = args
+    exc.__dict__.update(attrs)
+    return exc
 
 
 def read_only_mapping(d: dict) -> types.MappingProxyType:
