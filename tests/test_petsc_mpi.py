@@ -1,6 +1,9 @@
 """A distributed PETSc solve on 2 ranks (``mpiexec -n 2``) gives SciPy's solution of the same
-3D elasticity system to 1e-8 relative; each rank passes only the rows it owns. Needs petsc4py and
-Open MPI's mpiexec (``make test-mpi``); skipped elsewhere."""
+3D elasticity system to 1e-8 relative; each rank passes only the rows it owns. ``mpiexec -n 2 polypore
+run CASE`` repeats the serial Newton history (iterations, residuals, active sets) and writes the same
+files for static contact (2D, 3D), flow and poromechanics (C4, a coarse C5). Needs petsc4py, pymetis
+and Open MPI's mpiexec (``make test-mpi``); skipped elsewhere, except the one-line error of mpiexec
+without PETSc."""
 
 from __future__ import annotations
 
@@ -56,3 +59,80 @@ def test_two_rank_solve_equals_scipy(tmp_path):
     for amg in ("gamg", "hypre"):
         assert res[amg]["error"] <= 1e-8, res
         assert res[amg]["block_size"] == 3 and res[amg]["iterations"] > 0
+
+
+# ---- distributed runs: `mpiexec -n 2 polypore run CASE` against the serial run (docs/parallel.md) ----
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
+
+RUNS = {
+    # static contact, 2D (direct: SuperLU serially, MUMPS on 2 ranks) and 3D (PETSc fieldsplit)
+    "six-fractures-static": [],
+    "frictionless-3d": ["solver.linear=block-petsc"],
+    # flow: one linear solve
+    "darcy-dfm-2d": [],
+    # poromechanics: C4's first 2 steps (direct), a coarse C5 (fieldsplit, GMRES to 1e-12)
+    "dfm-2d": ["time.end=40", "time.output_times=[40.0]"],
+    "dfm-3d": ["mesh.size=0.15", "time.end=4", "time.output_times=[4.0]", "solver.linear=block-petsc",
+               "solver.petsc.ksp_rtol=1e-12"],
+}
+
+
+def _polypore(args, out, ranks=None):
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": os.pathsep.join(
+        [os.path.join(os.path.dirname(__file__), "..", "src"), os.environ.get("PYTHONPATH", "")])}
+    cmd = [sys.executable, "-m", "polypore", "run", *args, "--out", str(out)]
+    if ranks:
+        cmd = [shutil.which("mpiexec"), "--allow-run-as-root", "--oversubscribe", "-n", str(ranks), *cmd]
+    p = subprocess.run(cmd, capture_output=True, text=True, timeout=600, env=env)
+    assert p.returncode == 0, p.stderr[-3000:]
+    return p
+
+
+@pytest.mark.parametrize("case", list(RUNS))
+def test_two_ranks_repeat_the_serial_newton_history(tmp_path, case):
+    """Same Newton iterations, residuals (1e-8 relative above 1e-6, 1e-9 absolute: the norms are
+    scaled), open/stick/slip counts of every iterate, final contact states and fracture fields on 2
+    ranks as serially; rank 0 writes the serial run's files."""
+    pytest.importorskip("petsc4py.PETSc")
+    pytest.importorskip("mpi4py")
+    pytest.importorskip("pymetis")
+    if shutil.which("mpiexec") is None:
+        pytest.skip("no mpiexec (Open MPI's openmpi-bin)")
+    from mpi_compare import compare
+
+    args = [case] + [a for s in RUNS[case] for a in ("--set", s)]
+    _polypore(args, tmp_path / "serial")
+    p = _polypore(args, tmp_path / "two", ranks=2)
+    assert "distributed run on 2 MPI ranks" in p.stderr and "partition:" in p.stderr
+    assert p.stdout.count(f"case {case}:") == 1                       # rank 0 reports
+    rep = compare(tmp_path / "serial", tmp_path / "two")
+    assert rep["same_iterations"] and rep["same_counts"] and rep["same_states"], rep
+    assert rep["max_rel_residual"] <= 1e-8 and rep["max_abs"] <= 1e-9, rep
+    assert rep["max_rel_fracture_fields"] <= 1e-7, rep
+    assert rep.get("max_rel_fluxes", 0.0) <= 1e-8, rep
+    serial = sorted(f.name for f in (tmp_path / "serial").iterdir())
+    assert sorted(f.name for f in (tmp_path / "two").iterdir()) == serial
+
+
+def test_mpiexec_without_petsc_is_one_line_exit_2(tmp_path):
+    """Several ranks without petsc4py/mpi4py: one line naming the install route, exit status 2 (the
+    environment of mpiexec is faked; runs in the serial suite too)."""
+    code = textwrap.dedent("""
+        import builtins, sys
+        real = builtins.__import__
+        def no_mpi(name, *a, **k):
+            if name.split(".")[0] in ("petsc4py", "mpi4py"):
+                raise ImportError(name)
+            return real(name, *a, **k)
+        builtins.__import__ = no_mpi
+        from polypore.cli import main
+        sys.exit(main(["run", "six-fractures-static", "--out", sys.argv[1]]))
+    """)
+    env = {**os.environ, "OMPI_COMM_WORLD_SIZE": "2", "PYTHONPATH": os.pathsep.join(
+        [os.path.join(os.path.dirname(__file__), "..", "src"), os.environ.get("PYTHONPATH", "")])}
+    p = subprocess.run([sys.executable, "-c", code, str(tmp_path / "out")], capture_output=True, text=True,
+                       timeout=120, env=env)
+    assert p.returncode == 2, p.stderr
+    lines = p.stderr.strip().splitlines()
+    assert len(lines) == 1 and "polypore[mpi]" in lines[0] and "docs/parallel.md" in lines[0], p.stderr
+    assert not (tmp_path / "out").exists()

@@ -76,16 +76,42 @@ def _signals_raise():
             signal.signal(sig, handler)
 
 
-@contextmanager
-def _output(args, default_name: str):
-    """Claim the output folder (``--out`` or results/<default_name>) for the block: yields
-    (folder, staging folder); see :func:`polypore.io.atomic.run_directory`."""
-    out = Path(args.out) if args.out else Path("results") / default_name
+def _check_case_folder(args, out: Path) -> None:
     case = Path(args.case)
     if args.force and case.is_file() and out.resolve() in case.resolve().parents:
         # the folder is replaced as a whole: it must not hold the case being run
         raise InputError("--out", f"{str(out)!r} holds the case file {args.case!r}, which --force would delete; "
                          "choose another --out")
+
+
+def _check_output(args, out: Path) -> None:
+    from .io.atomic import check_output_directory
+
+    _check_case_folder(args, out)
+    check_output_directory(out, args.force)
+
+
+@contextmanager
+def _output(args, default_name: str):
+    """Claim the output folder (``--out`` or results/<default_name>) for the block: yields
+    (folder, staging folder); see :func:`polypore.io.atomic.run_directory`.
+
+    In a distributed run rank 0 writes the results; the other ranks, which compute the same
+    replicated results, write into a temporary folder that is deleted (docs/parallel.md).
+    """
+    from .solvers.distributed import context
+
+    out = Path(args.out) if args.out else Path("results") / default_name
+    ctx = context()
+    if ctx is not None and ctx.size > 1:
+        ctx.bcast_call(_check_output, args, out)      # rank 0's verdict on every rank
+        if not ctx.root:
+            import tempfile
+
+            with tempfile.TemporaryDirectory(prefix=f"polypore-rank{ctx.rank}-") as tmp:
+                yield out, Path(tmp)
+            return
+    _check_case_folder(args, out)
     with run_directory(out, force=args.force) as stage:
         yield out, stage
         if _SIGNALLED:
@@ -138,6 +164,9 @@ def cmd_run(args) -> int:
     _check_limits(args, case)
     with _output(args, case.name) as (out, stage):
         summary = run_case(case, stage)
+    peaks = _rank_peaks()
+    if not _is_root():
+        return 0
     steps = summary["steps"]
     st = steps[-1] if steps else {}
     parts = [f"{summary['mesh']['cells']} cells, {summary['mesh']['unknowns']} unknowns"]
@@ -149,12 +178,47 @@ def cmd_run(args) -> int:
         parts.append(f"{n} Newton iteration{'' if n == 1 else 's'}")
         parts.append(f"{'at the end ' if len(steps) > 1 else ''}residual {st['residual']:.2e}, "
                      f"faces open {st['open']}, stick {st['stick']}, slip {st['slip']}")
-    parts.append(f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB")
+    parts.append(f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB"
+                 + (f" (ranks: {'/'.join(f'{p:.0f}' for p in peaks)} MB)" if peaks else ""))
     print(f"case {case.name}: " + "; ".join(parts))
     for name, v in summary.get("errors", {}).items():
         print(f"  {name} = {v:.4e}")
     print(f"wrote {out}/")
     return 0
+
+
+def _rank_peaks() -> list[float] | None:
+    """Peak resident memory of every rank (MB) on rank 0 of a distributed run; None otherwise."""
+    from .solvers.distributed import context
+
+    ctx = context()
+    if ctx is None or ctx.size == 1:
+        return None
+    from .runs.common import peak_memory_mb
+
+    return ctx.comm.gather(peak_memory_mb(), root=0)
+
+
+def _abort_other_ranks() -> None:
+    """A bug on one rank of a distributed run: print it and abort every rank (MPI_Abort) rather than
+    leave the others waiting in a collective operation."""
+    from .solvers.distributed import context
+
+    ctx = context()
+    if ctx is None or ctx.size == 1:
+        return
+    import traceback
+
+    traceback.print_exc()
+    sys.stderr.flush()
+    ctx.comm.Abort(1)
+
+
+def _is_root() -> bool:
+    from .solvers.distributed import context
+
+    ctx = context()
+    return ctx is None or ctx.root
 
 
 def cmd_convergence(args) -> int:
@@ -251,6 +315,28 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _start_distributed(args) -> bool:
+    """Under mpiexec (docs/parallel.md): start the distributed mode; False (with a one-line
+    message) when more than one rank was started without petsc4py/mpi4py. One rank without them
+    runs serially."""
+    from .solvers.distributed import activate, launched_ranks
+
+    n = launched_ranks()
+    if n < 1 or args.func in (cmd_cases, cmd_schema):
+        return True
+    try:
+        ctx = activate()
+    except InputError as exc:
+        if n == 1:
+            return True
+        print(f"polypore: error: {exc}", file=sys.stderr)
+        return False
+    if ctx.rank > 0:
+        log.setLevel(logging.ERROR)           # rank 0 reports; the others compute the same
+    log.info("distributed run on %d MPI rank%s (PETSc)", ctx.size, "" if ctx.size == 1 else "s")
+    return True
+
+
 def main(argv=None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
@@ -258,15 +344,22 @@ def main(argv=None) -> int:
         parser.print_help()
         return 2
     _setup_logging(args.quiet)
+    if not _start_distributed(args):
+        return 2
     try:
         with _signals_raise():
             return args.func(args)
     except InputError as exc:
-        print(f"polypore: error: {exc}", file=sys.stderr)
+        if _is_root():                  # distributed: every rank raises the same, rank 0 reports
+            print(f"polypore: error: {exc}", file=sys.stderr)
         return 2
     except PolyporeError as exc:
-        print(f"polypore: run failed: {exc}", file=sys.stderr)
+        if _is_root():
+            print(f"polypore: run failed: {exc}", file=sys.stderr)
         return exc.exit_status
+    except Exception:
+        _abort_other_ranks()
+        raise
     except (KeyboardInterrupt, Terminated) as exc:
         # one line, no traceback: the reason and, once the output folder was claimed, where it is recorded
         where = getattr(exc, "failed_json", None)

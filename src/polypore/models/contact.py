@@ -28,6 +28,13 @@ from ..core.errors import InputError
 
 LAWS = ("frictionless", "tresca", "coulomb")
 OPEN, STICK, SLIP = 0, 1, 2
+# Stick/slip decision: a face whose trial tangential traction |y_τ| lies within this relative band
+# below the friction bound r (on the cone, to round-off) is classified SLIP. At the start of a step
+# every face that slipped in the previous one sits there (s = 0, |λ_τ| = F λ_n), and without a band
+# its state, hence its generalised derivative, was decided by round-off: runs with different
+# linear solvers or MPI rank counts took different Newton paths (docs/parallel.md). The projection
+# itself is unchanged (continuous across the cone); only the derivative chosen inside the band is.
+STICK_SLIP_TIE = 1e-8
 STATE_NAMES = ("open", "stick", "slip")
 
 
@@ -104,7 +111,8 @@ def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.nda
     else:
         r = law.friction * np.maximum(y_n, 0.0)
     ny = np.linalg.norm(y_t, axis=1)
-    stick = (ny <= r) & (r > 0)
+    inside = (ny <= r) & (r > 0)                                  # the projection's value
+    stick = (ny < (1.0 - STICK_SLIP_TIE) * r) & (r > 0)           # state and derivative (ties: slip)
     slip = ~stick
     state = np.where(~closed, OPEN, np.where(stick, STICK, SLIP)).astype(np.int8)
     if law.kind == "tresca":
@@ -117,7 +125,7 @@ def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.nda
     # tangential part: y_t if stick, r ŷ if slip (r = 0 gives 0)
     safe = np.where(ny > 0, ny, 1.0)
     yhat = y_t / safe[:, None]
-    Pt_val = np.where(stick[:, None], y_t, r[:, None] * yhat)
+    Pt_val = np.where(inside[:, None], y_t, r[:, None] * yhat)
     fac = np.where(stick, 1.0, r / safe)                         # stick: identity on the tangent plane
     M = fac[:, None, None] * np.where(stick[:, None, None], Pt, Pt - np.einsum("fi,fj->fij", yhat, yhat))
     M = np.einsum("fij,fjk->fik", M, Pt)                          # ∂P_τ/∂y_τ composed with the tangent projector

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..assembly.flow import FlowAssembler, FlowSystem
 from ..core.errors import InputError
+from ..solvers.distributed import DofLayout, context, min_owner, register_layout
 from ..solvers.linear import LinearSolver
 
 
@@ -261,6 +262,35 @@ class FlowModel:
         self.fracture_cells = self.assembler.fcells
         self.setup_seconds = {"validation": t1 - t0, "local_operators_and_pattern": time.perf_counter() - t1}
         self._cache = None
+        self._distribute()
+
+    # -- distributed runs (solvers/distributed.py) ---------------------------------------------
+    def dof_owner(self, part: np.ndarray) -> np.ndarray:
+        """(n_dofs,) owner rank of every HFV unknown (face, trace, fracture, edge pressures) for the
+        cell ranks ``part``: the lowest rank among the cells of a face; a fracture face's traces
+        and pressure its + side cell's; an edge the lowest among its fracture faces'."""
+        d = self.assembler.dofs
+        cf = self.mesh.cell_faces
+        own = min_owner(d.n, d.slot, part[cf.rows_of_entries()], fill=-1)
+        fown = part[self.network.plus_cell]
+        own[d.trace.ravel()] = np.repeat(fown, 2)
+        own[d.frac] = fown
+        fe = self.fracture_cells.face_edges
+        if d.edge.size and fe.nnz:
+            eo = min_owner(d.edge.size, fe.values, fown[fe.rows_of_entries()], fill=-1)
+            own[d.edge] = eo
+        return np.maximum(own, 0)
+
+    def _distribute(self):
+        """Under mpiexec: the layout of the free unknowns of :meth:`_system`, given to the solver."""
+        ctx = context()
+        if ctx is None:
+            return
+        ids, _, _ = self._dirichlet(0.0)
+        free = np.ones(self.assembler.dofs.n, bool)
+        free[ids] = False
+        owner = self.dof_owner(ctx.partition(self.mesh))[free]
+        register_layout(self.solver, DofLayout(owner, ctx.comm))
 
     # -- data ---------------------------------------------------------------------------------
     def _ff_points(self) -> np.ndarray:

@@ -26,6 +26,7 @@ from ..core.errors import InputError
 from ..discretisation import DisplacementSpace, Operators, QuadraticOperators, QuadraticSpace
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
+from ..solvers.distributed import DofLayout, context, min_owner, register_layout
 from ..solvers.linear import LinearSolver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import LAWS, OPEN, SLIP, STICK, ContactLaw, linearise_contact
@@ -233,6 +234,7 @@ class ContactMechanics:
             self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8,
                                             petsc=backend == "block-petsc", options=self.solver.petsc_options)
         self.newton = newton or NewtonOptions(label="contact Newton")
+        self.layout = self._distribute()
         self.seconds_setup = time.perf_counter() - t0
         log.info("mechanics: order %d, %d displacement dofs (%d free), %d multipliers, %s bubbles; set up in %.2f s",
                  self.order, self.n_dofs, self.free.size, self.n_ff * d,
@@ -265,6 +267,39 @@ class ContactMechanics:
         R = np.zeros((self.n_dofs, 3 if self.dim == 2 else 6))
         R[: self.space.n_point_slots * self.dim] = rigid_body_modes(self.slot_points)
         return R[self.free]
+
+    # ---- distributed runs (solvers/distributed.py) --------------------------------------------
+    def slot_owner(self, part: np.ndarray) -> np.ndarray:
+        """(n_slots,) owner rank of every displacement slot for the cell ranks ``part`` (n_cells,):
+        the lowest rank among the cells holding it (a bubble: its cell)."""
+        sp_ = self.space
+        cs = sp_.cell_slots
+        if isinstance(cs, np.ndarray):             # order 2: (n_cells, n_loc), bubbles apart
+            idx, cells = cs.ravel(), np.repeat(np.arange(cs.shape[0]), cs.shape[1])
+        else:
+            idx, cells = cs.values, cs.rows_of_entries()
+        own = min_owner(sp_.n_slots, idx, part[cells], fill=-1)
+        nb = sp_.n_bubbles
+        if nb:
+            b = sp_.n_point_slots + np.arange(nb)
+            own[b] = np.where(own[b] < 0, part[sp_.bubble_cell], own[b])
+        return np.maximum(own, 0)
+
+    def dof_owner(self, part: np.ndarray) -> np.ndarray:
+        """(n_free + n_ff d,) owner rank of every Newton unknown [free u, λ̃]: a slot's for its
+        components, the + side cell's for a fracture face's multipliers."""
+        u = np.repeat(self.slot_owner(part), self.dim)[self.free]
+        lam = np.repeat(part[self.fm.network.plus_cell], self.dim)
+        return np.concatenate([u, lam])
+
+    def _distribute(self):
+        """Under mpiexec: the layout of the Newton unknowns from the mesh partition, given to the solver."""
+        ctx = context()
+        if ctx is None:
+            return None
+        layout = DofLayout(self.dof_owner(ctx.partition(self.fm.mesh)), ctx.comm)
+        register_layout(self.solver, layout)
+        return layout
 
     # ---- set-up -------------------------------------------------------------------------
     def _boundary_faces(self, name: str, field_: str) -> np.ndarray:

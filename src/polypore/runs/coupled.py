@@ -135,7 +135,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             timing["linear"] += info.seconds.get("linear", 0.0)
             row = {"time": rec.time, "dt": rec.dt, "newton_iterations": info.iterations, "residual": info.residual,
                    "open": info.open, "stick": info.stick, "slip": info.slip, "seconds": rec.seconds,
-                   "cuts": rec.cuts}
+                   "cuts": rec.cuts, "history": info.history}
             if info.linear_iterations:
                 row["linear_iterations"] = info.linear_iterations
             if info.energy is not None:

@@ -170,8 +170,19 @@ def _assign_regions(fm: FracturedMesh, regions, field="regions") -> FracturedMes
 def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
     """Generate (or read) the case's mesh, map its fractures and compute node sides.
 
-    Logs each stage with its wall time. Raises InputError for any bad field.
+    Logs each stage with its wall time. Raises InputError for any bad field. In a distributed run
+    (mpiexec) rank 0 builds it and broadcasts it to the other ranks (docs/parallel.md: the mesh
+    stays serial).
     """
+    from ..solvers.distributed import context
+
+    ctx = context()
+    if ctx is not None and ctx.size > 1:
+        return ctx.bcast_call(_build_fractured_mesh, case)
+    return _build_fractured_mesh(case)
+
+
+def _build_fractured_mesh(case: CaseFile) -> FracturedMesh:
     spec = case.spec
     m = spec.mesh
     t0 = time.perf_counter()

@@ -96,10 +96,15 @@ class LinearSolver:
     near_nullspace: np.ndarray | None = None
     stats: SolveStats = field(default_factory=SolveStats)
     petsc_options: dict | None = None
+    layouts: dict | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         if self.backend not in BACKENDS:
             raise InputError("solver.linear", f"unknown linear solver {self.backend!r}; allowed: {', '.join(BACKENDS)}")
+        from .distributed import context
+
+        if context() is not None:
+            self._distributed_backend()
         if self.backend == "auto":
             self.backend = "pardiso" if have_pardiso() else "superlu"
         if self.backend == "pardiso" and not have_pardiso():
@@ -113,6 +118,22 @@ class LinearSolver:
             from .petsc import petsc
 
             petsc()                 # InputError with the install route when petsc4py is missing
+
+    def _distributed_backend(self):
+        """Under mpiexec (docs/parallel.md): the PETSc counterpart of the chosen backend. The direct
+        ones (auto, superlu, pardiso) become MUMPS's distributed LU, ``amg`` the ``petsc`` backend,
+        ``block-amg`` ``block-petsc``; the [solver.petsc] table still applies on top."""
+        was = self.backend
+        if was in ("auto", "superlu", "pardiso"):
+            self.backend = "petsc"
+            self.petsc_options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps",
+                                  **(self.petsc_options or {})}
+        elif was == "amg":
+            self.backend = "petsc"
+        elif was == "block-amg":
+            self.backend = "block-petsc"
+        if was != self.backend:
+            log.debug("distributed run: linear solver %r runs as %r", was, self.backend)
 
     def solve(self, A, b) -> np.ndarray:
         t0 = time.perf_counter()
@@ -148,14 +169,26 @@ class LinearSolver:
         return lu.solve(b)
 
     def _petsc(self, A, b):
-        if getattr(self, "_petsc_solver", None) is None:
+        from .distributed import layout_for
+
+        n = A.shape[0]
+        layout = layout_for(self, n)            # None in a serial run
+        solvers = self.__dict__.setdefault("_petsc_solvers", {})
+        solver = solvers.get(n)
+        if solver is None:
             from .petsc import PetscLinearSolver
 
-            self._petsc_solver = PetscLinearSolver(symmetric=self.symmetric, rtol=self.rtol, maxiter=self.maxiter,
-                                                   near_nullspace=self.near_nullspace, options=self.petsc_options)
-        k = len(self._petsc_solver.iterations)
-        x = self._petsc_solver.solve(A, b)
-        self.stats.iterations.extend(self._petsc_solver.iterations[k:])
+            B = self.near_nullspace if self.near_nullspace is not None and len(self.near_nullspace) == n else None
+            if B is not None and layout is not None:
+                B = layout.local(B)
+            solver = solvers[n] = PetscLinearSolver(symmetric=self.symmetric, rtol=self.rtol, maxiter=self.maxiter,
+                                                    near_nullspace=B, options=self.petsc_options)
+        k = len(solver.iterations)
+        if layout is None:
+            x = solver.solve(A, b)
+        else:
+            x = layout.gather(solver.solve(layout.rows(A), layout.local(b)))
+        self.stats.iterations.extend(solver.iterations[k:])
         return x
 
     def _amg(self, A, b):

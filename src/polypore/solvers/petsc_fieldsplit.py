@@ -35,8 +35,10 @@ small meshes) have zero rows in the rigid-body modes (5.7 s instead of 0.05 s on
 complexity 17), docs/parallel.md. Every option can be overridden through ``options`` (without the
 solver's prefix, ``contact_`` or ``poro_`` by default) or on PETSc's command line with it.
 
-One rank for now: PETSc's side is distributable, but Cl̂, Cû and Ŝ_p are computed here from the whole
-J (they are row-local; docs/parallel.md says what changes for N ranks).
+On N ranks (``mpiexec``, :mod:`.distributed`): every rank holds the whole J and computes Cl̂, Cû
+and Ŝ_p from it (they are row-local); a :class:`~.distributed.DofLayout` from the mesh partition
+gives each rank its rows of J and P for PETSc, the index sets of the splits are each rank's owned
+rows of a field, and the solution is gathered on every rank.
 """
 
 from __future__ import annotations
@@ -51,6 +53,7 @@ import scipy.sparse as sp
 
 from ..core.errors import InputError, RunError
 from .block_contact import ContactCondensation, _diag_blocks
+from .distributed import context, layout_for
 from .petsc import (AMG_KINDS, FIELD, KrylovDriver, PetscStats, ReusePolicy, aij, amg_defaults, interleaved_block_size,
                     krylov_defaults, near_nullspace, petsc, vec)
 
@@ -140,9 +143,10 @@ class _FieldSplitBase:
         if self.amg not in AMG_KINDS:
             raise InputError(f"{FIELD}.amg", f"unknown AMG {self.amg!r}; allowed: {', '.join(AMG_KINDS)}")
         self.P = petsc()
-        if self.P.COMM_WORLD.getSize() > 1:
-            raise InputError("solver.linear", "the PETSc block solvers run on one rank in this version "
-                             "(the distributed assembly comes next; docs/parallel.md)")
+        if self.P.COMM_WORLD.getSize() > 1 and context() is None:
+            raise InputError("solver.linear", "the PETSc block solvers run on N ranks in a distributed run "
+                             "only (polypore.solvers.distributed.activate(); docs/parallel.md)")
+        self._lay = None
         self.bs_u = interleaved_block_size(self.near_nullspace, self.d)
         self.driver = KrylovDriver(prefix, defaults, options, reuse, self.rtol, self.maxiter, self.accept_rtol,
                                    configure=self._configure)
@@ -172,8 +176,9 @@ class _FieldSplitBase:
             self._pat = _PreconditionerPattern(J, nu, nl, self.d, po)
             self._Jm = self._Pm = None
         Pcsr = self._pat.matrix(self._pat.values(J, Ml, shift))
-        self._Jm = aij(J, mat=self._Jm)
-        self._Pm = aij(Pcsr, mat=self._Pm)
+        lay = self._lay = layout_for(self, J.shape[0])
+        self._Jm = aij(J if lay is None else lay.rows(J), mat=self._Jm)
+        self._Pm = aij(Pcsr if lay is None else lay.rows(Pcsr), mat=self._Pm)
         self.driver.stats.convert_seconds += time.perf_counter() - t0
         return new
 
@@ -193,14 +198,17 @@ class _FieldSplitBase:
 
     def _run(self, J, rhs, Ml, shift, nu, nl, po, new_step: bool = False, target=None):
         new = self._matrices(J, Ml, shift, nu, nl, po)
+        self._sizes = (nu, nl, po, J.shape[0])
         if new:
-            self._nsp_u = None if self.near_nullspace is None else near_nullspace(self.near_nullspace)
+            self._nsp_u = None if self.near_nullspace is None else near_nullspace(self._rows(self.near_nullspace,
+                                                                                                np.arange(nu)))
         self.driver.operators(self._Jm, self._Pm, changed_pattern=new)
         self._forcing(target)
         if new:
             self._build_pc(nu, nl, po, J.shape[0])
         self._new_step = new_step
-        b = vec(rhs)
+        lay = self._lay
+        b = vec(rhs if lay is None else lay.local(rhs))
         x = self._Jm.createVecRight()
         r = x.duplicate()
         bn = b.norm()
@@ -214,13 +222,32 @@ class _FieldSplitBase:
             return r.norm() / bn
 
         self.driver.solve(b, x, residual, rebuild=new_step)
-        return x.getArray().copy()
+        return x.getArray().copy() if lay is None else lay.gather(x.getArray())
+
+    def _rows(self, data, serial):
+        """This rank's rows of per-unknown ``data`` indexed by the serial unknowns ``serial`` (in the
+        order of the field's index set)."""
+        if self._lay is None:
+            return data
+        return np.asarray(data)[self._lay.field_rows(serial) - int(serial[0]) if len(serial) else []]
 
     def _is(self, idx, bs=1):
-        s = self.P.IS().createGeneral(np.asarray(idx, dtype=self.P.IntType), comm=self.P.COMM_SELF)
+        """Index set of the field with the serial unknowns ``idx``: on N ranks this rank's owned
+        rows of it in the distributed numbering."""
+        lay = self._lay
+        if lay is not None:
+            idx = lay.field(idx)
+        s = self.P.IS().createGeneral(np.asarray(idx, dtype=self.P.IntType),
+                                      comm=self.P.COMM_SELF if lay is None else self.P.COMM_WORLD)
         if bs > 1:
             s.setBlockSize(bs)
         return s
+
+    def _sub_is(self, idx):
+        """Index set in the numbering of a sub-matrix whose rows are given (as this rank's part)."""
+        lay = self._lay
+        return self.P.IS().createGeneral(np.asarray(idx, dtype=self.P.IntType),
+                                         comm=self.P.COMM_SELF if lay is None else self.P.COMM_WORLD)
 
 
 def _amg_options(kind, prefix, nullspace, sym_graph=False):
@@ -256,6 +283,7 @@ class PetscBlockContactSolver(_FieldSplitBase):
     prefix: str = "contact_"
     reuse: ReusePolicy = field(default_factory=ReusePolicy)
     seconds: float = 0.0
+    layouts: dict | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         nf = self.condensation.normal.shape[0]
@@ -341,6 +369,7 @@ class PetscBlockPoroSolver(_FieldSplitBase):
     prefix: str = "poro_"
     reuse: ReusePolicy = field(default_factory=ReusePolicy)
     seconds: float = 0.0
+    layouts: dict | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         if self.pressure not in PRESSURE_SOLVERS:
@@ -386,9 +415,20 @@ class PetscBlockPoroSolver(_FieldSplitBase):
             return pc
         inner = pc.getFieldSplitSubKSP()[-1].getPC()
         if inner.getType() == "fieldsplit" and not self._inner_split:
-            nu = self.n_u
-            nm = inner.getOperators()[1].getSize()[0]
-            inner.setFieldSplitIS(("u", self._is(np.arange(nu), self.bs_u)), ("p", self._is(np.arange(nu, nm))))
+            nu, _, po, n = self._sizes
+            lay = self._lay
+            if lay is None:
+                nm = inner.getOperators()[1].getSize()[0]
+                iu, ip = np.arange(nu), np.arange(nu, nm)
+            else:
+                # m = (u, p) is numbered by the ranks' owned rows of u and p in turn
+                old = lay.perm[lay.field(np.r_[np.arange(nu), np.arange(po, n)])]
+                m0 = int(lay.comm.exscan(len(old)) or 0)
+                iu, ip = m0 + np.flatnonzero(old < nu), m0 + np.flatnonzero(old >= po)
+            su = self._sub_is(iu)
+            if self.bs_u > 1:
+                su.setBlockSize(self.bs_u)
+            inner.setFieldSplitIS(("u", su), ("p", self._sub_is(ip)))
             self._inner_split = True
         return inner
 
@@ -408,7 +448,9 @@ class PetscBlockPoroSolver(_FieldSplitBase):
                 Su.setBlockSizes(self.bs_u, self.bs_u)
             Su.setNearNullSpace(self._nsp_u)
         if self.pressure_nullspace is not None:
-            kp.getOperators()[1].setNearNullSpace(near_nullspace(np.asarray(self.pressure_nullspace, float)))
+            nu, _, po, n = self._sizes
+            pns = self._rows(np.asarray(self.pressure_nullspace, float), np.arange(po, n))
+            kp.getOperators()[1].setNearNullSpace(near_nullspace(pns))
         # Ŝ_p depends on the step only (F, and diag(A) in the lumped coupling): its set-up is kept
         # across the Newton iterations of a step, as BlockPoroSolver's _PressureSolve does
         kp.getPC().setReusePreconditioner(not self._new_step)

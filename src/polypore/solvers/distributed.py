@@ -1,0 +1,294 @@
+"""Distributed runs under ``mpiexec`` (docs/parallel.md, "Distributed runs"): the MPI context, the
+cell partition and the dof layouts that the PETSc solvers use. No physics here.
+
+Design (this version):
+
+* Every rank holds the whole mesh (built on rank 0 and broadcast) and the whole model; the Newton
+  iterate, residual and active sets are replicated, so every rank takes the same Newton decisions
+  without a reduction and the history on N ranks is the 1-rank history up to the linear solves.
+* The mesh cells are partitioned with METIS (:func:`polypore.mesh.partition.partition_cells`).
+  Every unknown of a linear system gets an owner rank from its cells (a model's ``dof_owner``):
+  the lowest rank among the cells of a node, face or edge unknown; a fracture face's multipliers,
+  bubbles and pressures the rank of its + side cell.
+* A :class:`DofLayout` renumbers the unknowns so that each rank's are one contiguous block in rank
+  order (stable: the serial order inside a rank), the layout PETSc's MPIAIJ matrices and
+  vectors have. A rank passes PETSc only its rows (global columns), and the solution is gathered
+  on every rank after the solve (vectors are small next to matrices).
+"""
+
+from __future__ import annotations
+
+import copyreg
+import io
+import logging
+import os
+import pickle
+import types
+
+import numpy as np
+import scipy.sparse as sp
+
+from ..core.errors import InputError
+
+log = logging.getLogger("polypore")
+
+# set by mpiexec/mpirun: Open MPI, MPICH/Hydra (and Intel MPI), Slurm's PMI-2
+_SIZE_VARS = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE")
+MPI_INSTALL = ("a distributed run needs petsc4py and mpi4py built for this machine's MPI: "
+               "pip install 'polypore[mpi]' and Debian's python3-petsc4py python3-mpi4py (`make test-mpi` "
+               "builds .venv-mpi that way; docs/parallel.md)")
+
+
+def launched_ranks() -> int:
+    """Ranks of the ``mpiexec`` that started this process (from its environment; 0 when not
+    started by mpiexec). Read without importing MPI."""
+    for name in _SIZE_VARS:
+        v = os.environ.get(name)
+        if v and v.isdigit():
+            return int(v)
+    return 0
+
+
+class Distributed:
+    """The MPI context of a distributed run: COMM_WORLD (mpi4py), this rank, the cell partitions.
+
+    Attributes
+    ----------
+    comm : mpi4py.MPI.Comm (COMM_WORLD)
+    rank, size : int
+    """
+
+    def __init__(self):
+        try:
+            from mpi4py import MPI
+            from petsc4py import PETSc  # noqa: F401  (PETSc on the same MPI)
+        except ImportError:
+            raise InputError("mpiexec", MPI_INSTALL) from None
+        self.MPI = MPI
+        self.comm = MPI.COMM_WORLD
+        self.rank = self.comm.Get_rank()
+        self.size = self.comm.Get_size()
+        self._parts: dict = {}
+
+    @property
+    def root(self) -> bool:
+        return self.rank == 0
+
+    def bcast_call(self, fn, *args, **kw):
+        """``fn(*args, **kw)`` on rank 0, its result broadcast (pickled) to every rank. An exception
+        on rank 0 is raised on every rank, so no rank waits for a value that never comes."""
+        blob = err = None
+        if self.root:
+            try:
+                out = fn(*args, **kw)
+                blob = _dumps(out)
+            except Exception as exc:       # noqa: BLE001 — re-raised on every rank below
+                err = exc
+        err = self.comm.bcast(None if err is None else _portable_error(err), root=0)
+        if err is not None:
+            raise _rebuilt_error(err)
+        blob = self.comm.bcast(blob, root=0)
+        return out if self.root else pickle.loads(blob)
+
+    def partition(self, mesh) -> np.ndarray:
+        """(n_cells,) int32 rank of every cell (METIS on rank 0, broadcast); cached per mesh."""
+        key = id(mesh)
+        hit = self._parts.get(key)
+        if hit is not None and hit[0] is mesh:
+            return hit[1]
+        from ..mesh.partition import partition_cells
+
+        parts = self.bcast_call(partition_cells, mesh, self.size)
+        counts = np.bincount(parts, minlength=self.size)
+        log.info("partition: %d cells on %d rank%s (%s cells per rank)", mesh.n_cells, self.size,
+                 "" if self.size == 1 else "s",
+                 "/".join(str(int(c)) for c in counts))
+        self._parts[key] = (mesh, parts)
+        return parts
+
+
+def _portable_error(exc: BaseException) -> tuple:
+    """An exception as (class, args, attributes): polypore's errors take (field, message) in their
+    constructor, which pickle's default (class(*args)) does not call right."""
+    return type(exc), exc.args, dict(getattr(exc, "__dict__", {}))
+
+
+def _rebuilt_error(err: tuple) -> BaseException:
+    cls, args, attrs = err
+    exc = cls.__new__(cls)
+    exc.args = args
+    exc.__dict__.update(attrs)
+    return exc
+
+
+def read_only_mapping(d: dict) -> types.MappingProxyType:
+    """Rebuilds a pickled ``MappingProxyType`` (see :func:`_dumps`)."""
+    return types.MappingProxyType(d)
+
+
+def _dumps(obj) -> bytes:
+    """Pickle with read-only mappings (the mesh's ``types.MappingProxyType`` fields) as themselves."""
+    buf = io.BytesIO()
+    p = pickle.Pickler(buf, protocol=pickle.HIGHEST_PROTOCOL)
+    p.dispatch_table = copyreg.dispatch_table.copy()
+    p.dispatch_table[types.MappingProxyType] = lambda m: (read_only_mapping, (dict(m),))
+    p.dump(obj)
+    return buf.getvalue()
+
+
+_CONTEXT: Distributed | None = None
+
+
+def activate() -> Distributed:
+    """Start the distributed mode (the CLI does this under mpiexec); InputError when petsc4py or
+    mpi4py is missing."""
+    global _CONTEXT
+    if _CONTEXT is None:
+        _CONTEXT = Distributed()
+    return _CONTEXT
+
+
+def deactivate() -> None:
+    global _CONTEXT
+    _CONTEXT = None
+
+
+def context() -> Distributed | None:
+    """The active :class:`Distributed` context, or None in a serial run."""
+    return _CONTEXT
+
+
+class DofLayout:
+    """A permutation of the unknowns of one linear system that makes each rank's a contiguous block.
+
+    Parameters
+    ----------
+    owner : (n,) int, owner rank of every unknown (serial numbering)
+    comm : mpi4py communicator
+
+    Attributes
+    ----------
+    perm : (n,) int64, serial index of every distributed index (new → old)
+    inv : (n,) int64, distributed index of every serial index (old → new)
+    counts : (size,) int64, unknowns per rank; start, end : this rank's rows [start, end)
+    owned : (end − start,) int64, serial indices of this rank's rows, in distributed order
+    """
+
+    def __init__(self, owner: np.ndarray, comm):
+        owner = np.asarray(owner, np.int64)
+        size, rank = comm.Get_size(), comm.Get_rank()
+        if owner.size and (owner.min() < 0 or owner.max() >= size):
+            raise ValueError(f"owner ranks must lie in [0, {size}), got [{owner.min()}, {owner.max()}]")
+        self.comm = comm
+        self.n = owner.size
+        self.perm = np.argsort(owner, kind="stable").astype(np.int64)
+        self.inv = np.empty(self.n, np.int64)
+        self.inv[self.perm] = np.arange(self.n)
+        self.counts = np.bincount(owner, minlength=size).astype(np.int64)
+        starts = np.concatenate([[0], np.cumsum(self.counts)])
+        self.start, self.end = int(starts[rank]), int(starts[rank + 1])
+        self.displs = starts[:-1]
+        self.owned = self.perm[self.start:self.end]
+
+    @classmethod
+    def contiguous(cls, n: int, comm) -> "DofLayout":
+        """No renumbering: PETSc's default split of n rows (for systems without a model layout)."""
+        size = comm.Get_size()
+        counts = [n // size + (r < n % size) for r in range(size)]
+        return cls(np.repeat(np.arange(size), counts), comm)
+
+    @property
+    def n_local(self) -> int:
+        return self.end - self.start
+
+    def rows(self, A) -> sp.csr_matrix:
+        """(n_local, n) this rank's rows of the permuted matrix P A Pᵀ, columns distributed-numbered,
+        from the serial (n, n) matrix A."""
+        A = sp.csr_matrix(A)
+        R = A[self.owned]
+        R = sp.csr_matrix((R.data, self.inv[R.indices], R.indptr), shape=(self.n_local, A.shape[1]))
+        R.sort_indices()
+        return R
+
+    def local(self, b: np.ndarray) -> np.ndarray:
+        """This rank's entries of a serial-numbered vector (n,) or (n, k), distributed order."""
+        return np.ascontiguousarray(np.asarray(b)[self.owned])
+
+    def gather(self, x_local: np.ndarray) -> np.ndarray:
+        """The whole serial-numbered vector from every rank's part (n_local,) or (n_local, k):
+        an Allgatherv, so every rank gets it."""
+        x_local = np.asarray(x_local, float)
+        if x_local.ndim == 2:
+            return np.stack([self.gather(x_local[:, j]) for j in range(x_local.shape[1])], axis=1)
+        MPI = _mpi()
+        buf = np.empty(self.n, float)
+        self.comm.Allgatherv([np.ascontiguousarray(x_local), MPI.DOUBLE],
+                             [buf, (self.counts, self.displs), MPI.DOUBLE])
+        out = np.empty(self.n, float)
+        out[self.perm] = buf
+        return out
+
+    def field(self, serial: np.ndarray) -> np.ndarray:
+        """Sorted distributed indices of the unknowns ``serial`` (serial numbering) that this rank
+        owns: the rows of one field (an index set of PCFIELDSPLIT)."""
+        g = self.inv[np.asarray(serial, np.int64)]
+        return np.sort(g[(g >= self.start) & (g < self.end)])
+
+    def field_rows(self, serial: np.ndarray) -> np.ndarray:
+        """Serial indices of :meth:`field` (same order): to pick this rank's rows of per-unknown
+        data, such as near-null vectors, of that field."""
+        return self.perm[self.field(serial)]
+
+
+def _mpi():
+    from mpi4py import MPI
+
+    return MPI
+
+
+def min_owner(n: int, index: np.ndarray, rank: np.ndarray, fill: int = 0) -> np.ndarray:
+    """(n,) the lowest ``rank`` over the entries of each index (``fill`` where none).
+
+    Parameters
+    ----------
+    index : (m,) int, unknown of every (cell, unknown) incidence
+    rank : (m,) int, rank of that cell
+    """
+    out = np.full(n, np.iinfo(np.int64).max, np.int64)
+    np.minimum.at(out, np.asarray(index, np.int64), np.asarray(rank, np.int64))
+    out[out == np.iinfo(np.int64).max] = fill
+    return out
+
+
+def register_layout(solver, layout: DofLayout) -> None:
+    """Give ``solver`` the layout of its systems of size ``layout.n`` (a solver may serve several
+    systems, e.g. the mechanics and the coupled ones; any layout is correct, the model's keeps the
+    mesh partition)."""
+    if solver is None:
+        return
+    layouts = getattr(solver, "layouts", None)
+    if layouts is None:
+        try:
+            solver.layouts = layouts = {}
+        except AttributeError:
+            return
+    layouts[layout.n] = layout
+
+
+def layout_for(solver, n: int) -> DofLayout | None:
+    """The layout registered on ``solver`` for size n; in a distributed run without one, PETSc's
+    contiguous split (correct, but not aligned with the mesh partition); None when serial."""
+    ctx = context()
+    if ctx is None:
+        return None
+    layouts = getattr(solver, "layouts", None)
+    if layouts is None:
+        layouts = {}
+        try:
+            solver.layouts = layouts
+        except AttributeError:
+            pass
+    lay = layouts.get(n)
+    if lay is None:
+        lay = layouts[n] = DofLayout.contiguous(n, ctx.comm)
+    return lay

@@ -1,0 +1,87 @@
+"""The serial pieces of distributed runs (docs/parallel.md): the cell graph METIS partitions, the owners
+of the unknowns, and the dof layout's renumbering. No MPI needed: a stand-in communicator gives the
+rank; the 2-rank runs themselves are in test_petsc_mpi.py."""
+
+import numpy as np
+import scipy.sparse as sp
+
+from polypore.mesh.partition import cell_graph, partition_cells
+from polypore.setup.casefile import load_case
+from polypore.setup.meshing import build_fractured_mesh
+from polypore.setup.poromechanics import poro_setup
+from polypore.solvers.distributed import DofLayout, min_owner
+
+
+class FakeComm:
+    def __init__(self, rank, size):
+        self.rank, self.size = rank, size
+
+    def Get_rank(self):
+        return self.rank
+
+    def Get_size(self):
+        return self.size
+
+
+def _c4():
+    case = load_case("dfm-2d", ["mesh.size=0.2", "mesh.fracture_size=0.1"])
+    fm = build_fractured_mesh(case)
+    return fm, poro_setup(case, fm)[0]
+
+
+def test_cell_graph_links_the_two_cells_of_every_interior_face():
+    fm, _ = _c4()
+    mesh = fm.mesh
+    xadj, adj = cell_graph(mesh)
+    rows = np.repeat(np.arange(mesh.n_cells), np.diff(xadj))
+    G = sp.csr_matrix((np.ones(adj.size), (rows, adj)), shape=(mesh.n_cells,) * 2)
+    assert (G != G.T).nnz == 0 and G.diagonal().sum() == 0
+    K, L = mesh.face_cells.T
+    inner = L >= 0
+    assert adj.size == 2 * inner.sum()
+    assert np.all(G[K[inner], L[inner]] > 0)
+    assert np.all(partition_cells(mesh, 1) == 0)
+
+
+def test_owners_follow_the_cells_and_fracture_faces_have_one_rank():
+    fm, model = _c4()
+    mesh, net = fm.mesh, fm.network
+    part = (mesh.geometry.cell_centroid[:, 0] > 0.5).astype(np.int64)      # two halves
+    own = model.dof_owner(part)
+    assert own.shape == (model.n_unknowns,) and set(np.unique(own)) == {0, 1}
+    mech = model.mech
+    # a slot: the lowest rank among the cells holding it
+    cs = mech.space.cell_slots
+    low = min_owner(mech.space.n_slots, cs.values, part[cs.rows_of_entries()])
+    assert np.array_equal(mech.slot_owner(part), low)
+    nfree, d = mech.free.size, mech.dim
+    # a fracture face's multipliers: its + side cell's rank, both components together
+    lam = own[nfree:nfree + net.n_faces * d].reshape(-1, d)
+    assert np.array_equal(lam, np.repeat(part[net.plus_cell][:, None], d, axis=1))
+    # one part: everything on rank 0
+    assert np.all(model.dof_owner(np.zeros(mesh.n_cells, np.int64)) == 0)
+
+
+def test_layout_makes_each_ranks_unknowns_contiguous_in_serial_order():
+    rng = np.random.default_rng(3)
+    n = 40
+    owner = rng.integers(0, 3, n)
+    A = sp.random(n, n, density=0.2, random_state=4, format="csr") + sp.identity(n, format="csr")
+    Pm = sp.csr_matrix((np.ones(n), (np.arange(n), np.argsort(owner, kind="stable"))), shape=(n, n))
+    PAPt = (Pm @ A @ Pm.T).tocsr()
+    blocks = []
+    for r in range(3):
+        lay = DofLayout(owner, FakeComm(r, 3))
+        assert np.all(owner[lay.owned] == r) and np.all(np.diff(lay.owned) > 0)      # serial order kept
+        assert lay.n_local == np.sum(owner == r)
+        R = lay.rows(A)
+        assert abs(R - PAPt[lay.start:lay.end]).max() == 0
+        b = np.arange(n, dtype=float)
+        assert np.array_equal(lay.local(b), b[lay.owned])
+        f = lay.field(np.arange(10, 20))
+        assert np.all((f >= lay.start) & (f < lay.end)) and np.all(np.diff(f) > 0)
+        assert set(lay.field_rows(np.arange(10, 20))) == {i for i in range(10, 20) if owner[i] == r}
+        blocks.append(lay.owned)
+    assert np.array_equal(np.concatenate(blocks), np.argsort(owner, kind="stable"))
+    one = DofLayout.contiguous(n, FakeComm(0, 1))
+    assert np.array_equal(one.owned, np.arange(n))
