@@ -138,3 +138,23 @@ def sheared_mechanics(fm, ramp: float, two_sided: bool = False):
                                        DisplacementBC(top, tuple(range(dim)),
                                                       lambda X, t: np.tile(min(t / ramp, 1.0) * utop, (len(X), 1)))],
                          contact=ContactSpec("coulomb", 0.5), two_sided=two_sided)
+
+
+# a generated 6x4x3 corner-point grid with two faults along i (tests/test_cornerpoint_*.py)
+CORNERPOINT_MESH = """
+[mesh]
+generator = "cornerpoint"
+cells = [6, 4, 3]
+extent = [600.0, 400.0, 60.0]
+top = 1500.0
+[[mesh.faults]]
+name = "F1"
+axis = "i"
+index = 2
+throw = 25.0
+[[mesh.faults]]
+name = "F2"
+axis = "i"
+index = 4
+throw = -10.0
+"""

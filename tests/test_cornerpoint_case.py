@@ -8,6 +8,8 @@ import json
 import numpy as np
 import pytest
 
+from conftest import CORNERPOINT_MESH
+
 from polypore.cli import main
 from polypore.core.errors import InputError
 from polypore.mesh.cornerpoint import MILLIDARCY, FaultSpec, generate_grid, write_grdecl
@@ -15,23 +17,7 @@ from polypore.setup.casefile import load_case
 from polypore.setup.flow import flow_setup, well_cells
 from polypore.setup.meshing import build_fractured_mesh, cornerpoint_of
 
-MESH = """
-[mesh]
-generator = "cornerpoint"
-cells = [6, 4, 3]
-extent = [600.0, 400.0, 60.0]
-top = 1500.0
-[[mesh.faults]]
-name = "F1"
-axis = "i"
-index = 2
-throw = 25.0
-[[mesh.faults]]
-name = "F2"
-axis = "i"
-index = 4
-throw = -10.0
-"""
+MESH = CORNERPOINT_MESH
 FLOW = """
 [flow]
 permeability = "grdecl"

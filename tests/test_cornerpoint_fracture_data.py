@@ -4,6 +4,7 @@ values on the faces of that fault; faults not named keep the global ones."""
 
 import numpy as np
 import pytest
+from conftest import CORNERPOINT_MESH
 
 from polypore.core.errors import InputError
 from polypore.setup.casefile import load_case
@@ -11,23 +12,7 @@ from polypore.setup.flow import flow_setup
 from polypore.setup.mechanics import mechanics_setup
 from polypore.setup.meshing import build_fractured_mesh
 
-GRID = """
-[mesh]
-generator = "cornerpoint"
-cells = [6, 4, 3]
-extent = [600.0, 400.0, 60.0]
-top = 1500.0
-[[mesh.faults]]
-name = "F1"
-axis = "i"
-index = 2
-throw = 25.0
-[[mesh.faults]]
-name = "F2"
-axis = "i"
-index = 4
-throw = -10.0
-[[mesh.faults]]
+GRID = CORNERPOINT_MESH + """[[mesh.faults]]
 name = "F3"
 axis = "j"
 index = 2
