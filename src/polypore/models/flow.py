@@ -29,7 +29,7 @@ import numpy as np
 
 from ..assembly.flow import FlowAssembler, FlowSystem
 from ..core.errors import InputError
-from ..solvers.distributed import DofLayout, context, min_owner, register_layout
+from ..solvers.distributed import context, distribute, min_owner
 from ..solvers.linear import LinearSolver
 
 
@@ -283,14 +283,12 @@ class FlowModel:
 
     def _distribute(self):
         """Under mpiexec: the layout of the free unknowns of :meth:`_system`, given to the solver."""
-        ctx = context()
-        if ctx is None:
+        if context() is None:
             return
         ids, _, _ = self._dirichlet(0.0)
         free = np.ones(self.assembler.dofs.n, bool)
         free[ids] = False
-        owner = self.dof_owner(ctx.partition(self.mesh))[free]
-        register_layout(self.solver, DofLayout(owner, ctx.comm))
+        distribute(self.solver, self.mesh, lambda part: self.dof_owner(part)[free])
 
     # -- data ---------------------------------------------------------------------------------
     def _ff_points(self) -> np.ndarray:

@@ -26,7 +26,7 @@ from ..core.errors import InputError
 from ..discretisation import DisplacementSpace, Operators, QuadraticOperators, QuadraticSpace
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
-from ..solvers.distributed import DofLayout, context, min_owner, register_layout
+from ..solvers.distributed import distribute, min_owner
 from ..solvers.linear import LinearSolver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import LAWS, OPEN, SLIP, STICK, ContactLaw, linearise_contact
@@ -234,7 +234,7 @@ class ContactMechanics:
             self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8,
                                             petsc=backend == "block-petsc", options=self.solver.petsc_options)
         self.newton = newton or NewtonOptions(label="contact Newton")
-        self.layout = self._distribute()
+        distribute(self.solver, fm.mesh, self.dof_owner)                  # under mpiexec only
         self.seconds_setup = time.perf_counter() - t0
         log.info("mechanics: order %d, %d displacement dofs (%d free), %d multipliers, %s bubbles; set up in %.2f s",
                  self.order, self.n_dofs, self.free.size, self.n_ff * d,
@@ -291,15 +291,6 @@ class ContactMechanics:
         u = np.repeat(self.slot_owner(part), self.dim)[self.free]
         lam = np.repeat(part[self.fm.network.plus_cell], self.dim)
         return np.concatenate([u, lam])
-
-    def _distribute(self):
-        """Under mpiexec: the layout of the Newton unknowns from the mesh partition, given to the solver."""
-        ctx = context()
-        if ctx is None:
-            return None
-        layout = DofLayout(self.dof_owner(ctx.partition(self.fm.mesh)), ctx.comm)
-        register_layout(self.solver, layout)
-        return layout
 
     # ---- set-up -------------------------------------------------------------------------
     def _boundary_faces(self, name: str, field_: str) -> np.ndarray:

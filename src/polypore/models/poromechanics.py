@@ -62,7 +62,7 @@ import scipy.sparse as sp
 from ..assembly.pattern import Pattern
 from ..core.errors import InputError, RunError
 from ..mesh import FracturedMesh
-from ..solvers.distributed import DofLayout, context, register_layout
+from ..solvers.distributed import distribute
 from ..solvers.linear import LinearSolver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import OPEN, SLIP, STICK, linearise_contact
@@ -355,20 +355,13 @@ class Poromechanics:
             self.solver = PetscBlockPoroSolver(nfree, d, nl, self.mech.condensation(),
                                                near_nullspace=self.mech.rigid_modes(),
                                                options=self.solver.petsc_options)
-        self._distribute()
+        distribute(self.solver, self.fm.mesh, self.dof_owner)            # under mpiexec only
 
     def dof_owner(self, part: np.ndarray) -> np.ndarray:
         """(n_unknowns,) owner rank of every step unknown [free u, λ̃, free pressures] for the cell
         ranks ``part``: the mechanics' and the flow's rules, a cell pressure its cell's."""
         flow = np.concatenate([self.flow.dof_owner(part), part])[self.flow_free]
         return np.concatenate([self.mech.dof_owner(part), flow])
-
-    def _distribute(self):
-        """Under mpiexec: the layout of the step unknowns from the mesh partition, given to the solver."""
-        ctx = context()
-        if ctx is None:
-            return
-        register_layout(self.solver, DofLayout(self.dof_owner(ctx.partition(self.fm.mesh)), ctx.comm))
 
     # ---- scaling and step coefficients ----------------------------------------------------
     def _setup_scaling(self):

@@ -131,9 +131,9 @@ def _permeability(flow, mesh, params) -> np.ndarray:
         K[:] = cell_permeability(grid, info)
         bad = ~(np.linalg.eigvalsh(K)[:, 0] > 0)
         if bad.any():
-            i, j, k = (int(a) + 1 for a in info.cell_ijk[np.flatnonzero(bad)[0]])
             raise InputError("flow.permeability", f"\"grdecl\": PERMX/PERMY/PERMZ (× NTG) of {grid.source} give a "
-                             f"zero permeability in {int(bad.sum())} active cell(s), e.g. cell ({i}, {j}, {k}); "
+                             f"zero permeability in {int(bad.sum())} active cell(s), e.g. cell "
+                             f"{info.cell_name(np.flatnonzero(bad)[0])}; "
                              "flow needs K > 0 (make those cells inactive or give a number)")
         value = None
     elif isinstance(value, dict):
@@ -204,9 +204,8 @@ def grid_porosity(mesh, field: str = "flow.porosity") -> np.ndarray:
     bad = ~((phi > 0) & (phi <= 1))
     if bad.any():
         c = np.flatnonzero(bad)[0]
-        i, j, k = (int(a) + 1 for a in info.cell_ijk[c])
         raise InputError(field, f"\"grdecl\": PORO × NTG × MULTPV of {grid.source} is {phi[c]:g} in cell "
-                         f"({i}, {j}, {k}) ({int(bad.sum())} cell(s) outside (0, 1])")
+                         f"{info.cell_name(c)} ({int(bad.sum())} cell(s) outside (0, 1])")
     return phi
 
 

@@ -143,8 +143,7 @@ def _cell_array(value, key: str, keyword, field: str, mesh):
         bad = ~ok(out)
         if bad.any():
             c = int(np.flatnonzero(bad)[0])
-            i, j, k = (int(a) + 1 for a in info.cell_ijk[c])
-            raise InputError(f"{field}.{key}", f"{value!r}: {kw} is {out[c]:g} in cell ({i}, {j}, {k}) "
+            raise InputError(f"{field}.{key}", f"{value!r}: {kw} is {out[c]:g} in cell {info.cell_name(c)} "
                              f"({int(bad.sum())} cell(s)); {key} must be {allowed}")
         return out
     kw = keyword.upper()
@@ -153,9 +152,8 @@ def _cell_array(value, key: str, keyword, field: str, mesh):
     tag = info.cell_values(grid.properties[kw]).astype(float)
     if not np.all(tag == np.round(tag)):
         c = int(np.flatnonzero(tag != np.round(tag))[0])
-        i, j, k = (int(a) + 1 for a in info.cell_ijk[c])
         raise InputError(f"{field}.keyword", f"{kw} must hold integers (a region number per cell), got {tag[c]:g} "
-                         f"in cell ({i}, {j}, {k})")
+                         f"in cell {info.cell_name(c)}")
     keys = np.array(sorted(value), float)
     vals = np.array([value[int(k)] for k in keys])
     pos = np.minimum(np.searchsorted(keys, tag), keys.size - 1)
@@ -163,9 +161,8 @@ def _cell_array(value, key: str, keyword, field: str, mesh):
     if miss.any():
         absent = sorted({int(v) for v in np.unique(tag[miss])})
         c = int(np.flatnonzero(miss)[0])
-        i, j, k = (int(a) + 1 for a in info.cell_ijk[c])
-        raise InputError(f"{field}.{key}", f"no value for {kw} = {', '.join(map(str, absent))} (e.g. cell ({i}, {j}, "
-                         f"{k})); the table gives {kw} = {', '.join(str(int(a)) for a in keys)}; the grid's active "
+        raise InputError(f"{field}.{key}", f"no value for {kw} = {', '.join(map(str, absent))} (e.g. cell "
+                         f"{info.cell_name(c)}); the table gives {kw} = {', '.join(str(int(a)) for a in keys)}; the grid's active "
                          f"cells have {kw} = {', '.join(str(int(a)) for a in np.unique(tag))}")
     return vals[pos]
 

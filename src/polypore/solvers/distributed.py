@@ -275,6 +275,17 @@ def register_layout(solver, layout: DofLayout) -> None:
     layouts[layout.n] = layout
 
 
+def distribute(solver, mesh, owner_of) -> DofLayout | None:
+    """Under mpiexec: the layout of a model's unknowns, ``owner_of(part)`` (n,) ranks from the cell
+    ranks ``part`` (n_cells,) of ``mesh``'s partition, registered on ``solver``; None when serial."""
+    ctx = context()
+    if ctx is None:
+        return None
+    layout = DofLayout(owner_of(ctx.partition(mesh)), ctx.comm)
+    register_layout(solver, layout)
+    return layout
+
+
 def layout_for(solver, n: int) -> DofLayout | None:
     """The layout registered on ``solver`` for size n; in a distributed run without one, PETSc's
     contiguous split (correct, but not aligned with the mesh partition); None when serial."""

@@ -258,6 +258,16 @@ def _amg_options(kind, prefix, nullspace, sym_graph=False):
     return out
 
 
+def _multiplier_schur(rest: str) -> dict[str, str]:
+    """Options of the outer split of GEOS's recipe: the multipliers "l" eliminated by a full Schur
+    factorisation preconditioned by selfp, point-block Jacobi on them; the rest (split ``rest``:
+    "u" for contact, "m" = (u, p) for poromechanics) with A⁻¹ approximated block-diagonally in S."""
+    return {"pc_type": "fieldsplit", "pc_fieldsplit_type": "schur", "pc_fieldsplit_schur_fact_type": "full",
+            "pc_fieldsplit_schur_precondition": "selfp", "fieldsplit_l_ksp_type": "preonly",
+            "fieldsplit_l_pc_type": "pbjacobi", f"fieldsplit_{rest}_ksp_type": "preonly",
+            f"fieldsplit_{rest}_mat_schur_complement_ainv_type": "blockdiag"}
+
+
 @dataclass
 class PetscBlockContactSolver(_FieldSplitBase):
     """GMRES + PCFIELDSPLIT (Schur, multipliers eliminated, AMG on S) for the contact Jacobian.
@@ -289,11 +299,7 @@ class PetscBlockContactSolver(_FieldSplitBase):
         nf = self.condensation.normal.shape[0]
         defaults = krylov_defaults(False, self.rtol, self.maxiter, self.restart)
         if nf:
-            defaults.update({"pc_type": "fieldsplit", "pc_fieldsplit_type": "schur",
-                             "pc_fieldsplit_schur_fact_type": "full", "pc_fieldsplit_schur_precondition": "selfp",
-                             "fieldsplit_l_ksp_type": "preonly", "fieldsplit_l_pc_type": "pbjacobi",
-                             "fieldsplit_u_ksp_type": "preonly",
-                             "fieldsplit_u_mat_schur_complement_ainv_type": "blockdiag",
+            defaults.update({**_multiplier_schur("u"),
                              **_amg_options(self.amg, "fieldsplit_u_", self.near_nullspace is not None, True)})
         else:
             defaults.update(_amg_options(self.amg, "", self.near_nullspace is not None))
@@ -379,11 +385,7 @@ class PetscBlockPoroSolver(_FieldSplitBase):
         u, p = m + "fieldsplit_u_", m + "fieldsplit_p_"
         defaults = krylov_defaults(False, self.rtol, self.maxiter, self.restart)
         if self.n_l:
-            defaults.update({"pc_type": "fieldsplit", "pc_fieldsplit_type": "schur",
-                             "pc_fieldsplit_schur_fact_type": "full", "pc_fieldsplit_schur_precondition": "selfp",
-                             "fieldsplit_l_ksp_type": "preonly", "fieldsplit_l_pc_type": "pbjacobi",
-                             "fieldsplit_m_ksp_type": "preonly",
-                             "fieldsplit_m_mat_schur_complement_ainv_type": "blockdiag"})
+            defaults.update(_multiplier_schur("m"))
         defaults.update({f"{m}pc_type": "fieldsplit", f"{m}pc_fieldsplit_type": "multiplicative",
                          f"{u}ksp_type": "preonly", f"{p}ksp_type": "preonly",
                          **_amg_options(self.amg, u, self.near_nullspace is not None, bool(self.n_l))})

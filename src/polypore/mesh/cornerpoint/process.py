@@ -124,6 +124,11 @@ class CornerPointInfo:
         i, j, k = self.cell_ijk.T
         return values[i, j, k]
 
+    def cell_name(self, cell: int) -> str:
+        """"(i, j, k)" of mesh cell ``cell``, 1-based as in the GRDECL file (for messages)."""
+        i, j, k = (int(a) + 1 for a in self.cell_ijk[cell])
+        return f"({i}, {j}, {k})"
+
     def cells_in(self, i=None, j=None, k=None) -> np.ndarray:
         """(m,) int32 mesh cells whose 0-based (i, j, k) lie in the given ranges.
 
