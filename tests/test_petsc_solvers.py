@@ -283,3 +283,9 @@ def test_block_petsc_runs_a_coupled_case_with_the_newton_history_of_block_amg(tm
     assert all(abs(a[0] - b[0]) <= 1 for a, b in zip(ew_amg, ew_petsc)), (ew_amg, ew_petsc)
     proc, _ = run("block-petsc", "--set", "solver.petsc.ksp_typo=1")
     assert proc.returncode == 2 and "ksp_typo" in proc.stderr and "Traceback" not in proc.stderr
+    # an option of the coupled fieldsplit only (its inner pressure split) is valid: the table also
+    # reaches the initial-state contact solve and the flow solve, which do not read it (SharedOptions)
+    proc, _ = run("block-petsc", "--set", "solver.petsc.fieldsplit_m_fieldsplit_p_pc_gamg_threshold=0.02")
+    assert proc.returncode == 0, proc.stderr
+    proc, _ = run("block-petsc", "--set", "solver.petsc.fieldsplit_m_fieldsplit_p_pc_gamg_threshhold=0.02")
+    assert proc.returncode == 2 and "threshhold" in proc.stderr and "Traceback" not in proc.stderr

@@ -53,7 +53,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Mapping
 
 import numpy as np
@@ -65,6 +65,7 @@ from ..mesh import FracturedMesh
 from ..solvers.distributed import distribute
 from ..solvers.linear import LinearSolver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
+from ..solvers.petsc import shared
 from .contact import OPEN, SLIP, STICK, linearise_contact
 from .energy import step_energy
 from .flow import FlowData, FlowModel, FlowSolution, _positive
@@ -170,13 +171,18 @@ class Poromechanics:
         self.newton = newton or NewtonOptions(label="poromechanics Newton")
         backend = getattr(self.solver, "backend", None)
         block = backend in ("block-amg", "block-petsc")
-        self.mech = ContactMechanics(fm, mech_data, self.solver, self.newton)
+        # the mechanics of the initial state and the flow solve are auxiliary: the [solver.petsc]
+        # table applies to them, but only the coupled solver insists that PETSc reads every name
+        # (fieldsplit_m_* exists in the coupled fieldsplit only)
+        aux = replace(self.solver, petsc_options=shared(self.solver.petsc_options)) \
+            if getattr(self.solver, "petsc_options", None) is not None else self.solver
+        self.mech = ContactMechanics(fm, mech_data, aux, self.newton)
         self.flow = FlowModel(fm, flow_data, flow_boundary, fracture_boundary=fracture_boundary,
                               cell_source=cell_source, fracture_source=fracture_source, alpha=alpha,
                               fracture_alpha=fracture_alpha,
                               solver=(LinearSolver("petsc" if backend == "block-petsc" else "amg", symmetric=True,
-                                                   petsc_options=self.solver.petsc_options)
-                                      if block else self.solver))
+                                                   petsc_options=shared(self.solver.petsc_options))
+                                      if block else aux))
         self.dim = fm.mesh.dim
         self.n_ff = fm.network.n_faces
         self.biot = float(flow_data.biot_coefficient)

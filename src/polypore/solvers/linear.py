@@ -126,8 +126,9 @@ class LinearSolver:
         was = self.backend
         if was in ("auto", "superlu", "pardiso"):
             self.backend = "petsc"
-            self.petsc_options = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps",
-                                  **(self.petsc_options or {})}
+            opts = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps",
+                    **(self.petsc_options or {})}
+            self.petsc_options = type(self.petsc_options)(opts) if isinstance(self.petsc_options, dict) else opts
         elif was == "amg":
             self.backend = "petsc"
         elif was == "block-amg":

@@ -177,6 +177,19 @@ def interleaved_block_size(B, d: int) -> int:
 
 
 # ---- options -----------------------------------------------------------------------------------
+class SharedOptions(dict):
+    """A ``[solver.petsc]`` table handed to an auxiliary solver of a run as well as to its principal
+    one (the contact solve of a coupled run's initial state, its flow solve). The options apply
+    there too, but one the auxiliary solver does not read is no error there: it may belong to the
+    principal solver's structure only (``fieldsplit_m_*`` of the coupled fieldsplit), and the
+    principal solver checks every name."""
+
+
+def shared(options: Mapping | None) -> SharedOptions | None:
+    """``options`` marked as shared (:class:`SharedOptions`); None stays None."""
+    return None if options is None else SharedOptions(options)
+
+
 def petsc_options(options: Mapping | None, field_: str = FIELD) -> dict[str, str]:
     """Normalise a ``[solver.petsc]`` mapping to PETSc option names (no ``-``) → string values.
 
@@ -318,12 +331,13 @@ class KrylovDriver:
         self.defaults = dict(defaults)
         self.user = petsc_options(options)
         self.reuse = reuse
+        # a shared table is checked by the run's principal solver, not here (SharedOptions)
         self.rtol, self.maxiter, self.accept_rtol = rtol, maxiter, accept_rtol
         self.configure = configure          # callback(ksp) after set-up (near-null spaces of sub-blocks)
         self.ksp = None
         self.age = 0
         self.base_its = None
-        self.checked = False
+        self.checked = isinstance(options, SharedOptions)
         self.stats = PetscStats()
         self.iterations: list[int] = []
 
