@@ -38,16 +38,17 @@ def save(fig, path) -> None:
 def time_unit(t_end: float) -> tuple[float, str]:
     """(seconds per unit, unit name) for the time axes of a run ending at ``t_end`` s.
 
-    Days once a run lasts more than ten days, seconds otherwise: the same rule for every
-    figure of a run, so its plots never mix seconds and days.
+    Days once a run lasts a day or more (reservoir time scales), seconds otherwise: the same
+    rule for every figure of a run, so its plots never mix seconds and days.
     """
-    return (DAY, "days") if t_end > 10 * DAY else (1.0, "s")
+    return (DAY, "days") if t_end >= DAY else (1.0, "s")
 
 
 def format_time(t: float, t_end: float) -> str:
-    """``t`` (s) in the run's unit: '100 days', '500 s'."""
+    """``t`` (s) in the run's unit: '100 days', '1 day', '500 s'."""
     f, name = time_unit(t_end)
-    return f"{t / f:.4g} {name}"
+    v = f"{t / f:.4g}"
+    return f"{v} {'day' if name == 'days' and v == '1' else name}"
 
 
 def time_tag(t: float, t_end: float) -> str:

@@ -3,8 +3,15 @@
 The case is set up by :func:`polypore.setup.poromechanics.poro_setup` (the mechanics and flow
 tables, ``[time]``, ``[initial_state]``); ``[monitor]`` names points whose overpressure is recorded.
 Files: case.toml, summary.json (steps with Newton counts, states and energy terms),
-fractures.csv, bulk/fractures VTU series + solution.pvd and, in 2D, overpressure maps,
-contact states along the fractures and mean aperture / fracture pressure against time.
+fractures.csv, bulk/fractures VTU series + solution.pvd and monitor plots: in 2D, overpressure
+maps, contact states along the fractures and mean aperture / fracture pressure against time; in
+3D, slip onset per fault, the faults seen face-on, pressures against time and an overpressure map
+(:mod:`polypore.io.plots3d`). Plots are written after the data and a plot that fails is a
+warning, never a failed run.
+
+Replot a finished run's folder (3D; also runs of older versions)::
+
+    python -m polypore.runs.coupled RUN_DIR [--out DIR]
 """
 
 from __future__ import annotations
@@ -18,14 +25,17 @@ import numpy as np
 from .. import __version__
 from ..core.errors import InputError, RunError
 from ..io.atomic import atomic_write_text
-from ..io.plots import monitor_plots, poro_plots
+from ..io.monitor3d import StepRecorder, collect, from_run_directory
+from ..io.plots import monitor_plots, poro_plots, time_unit
+from ..io.plots3d import write_3d_plots
 from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
 from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu, write_pvd
 from ..models.contact import SLIP, STATE_NAMES
 from ..models.energy import check_energy
 from ..models.fracture_geometry import arc_length
 from ..models.mechanics import MechanicsState
-from ..setup.casefile import CaseFile
+from ..setup.casefile import CaseFile, load_case
+from ..setup.flow import well_cells
 from ..setup.meshing import build_fractured_mesh
 from ..setup.poromechanics import monitor_points, poro_setup
 from .common import peak_memory_mb
@@ -55,6 +65,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
         p_ref = ref.pressure(g.cell_centroid)                  # outputs: absolute pressure = p_h + p
     p0 = model.cell_pressure(state).copy()
     points = monitor_points(case, mesh)
+    recorder = StepRecorder(net.names, net.fracture, model.mech.face_area, case_wells(case, mesh), g.cell_volume)
     q_start = model.jumps(state.u)
     n_hat = model.mech.normal
 
@@ -110,6 +121,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             pc = model.cell_pressure(st)
             for k, cell in points.items():
                 monitor["points"][k].append(float(pc[cell] - p0[cell]))
+            recorder.add(st.time, st.state, pc - p0, fq["p_f"])
             slip = slip_since_start(st)
             for i, name in enumerate(net.names):
                 sel = net.fracture == i
@@ -157,11 +169,20 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             log.warning("energy estimate violated: %s", v)
         write_pvd(stage / "solution.pvd", pvd)
         write_fractures_csv(stage / "fractures.csv", blocks)
+        t_plots = time.perf_counter()
         if mesh.dim == 2:
-            poro_plots(stage, case.name, mesh, net, s_arc, snapshots, series, schedule.end)
-            day = schedule.end > 10 * 86400.0
-            monitor_plots(stage, case.name, net, s_arc, monitor, snapshots, onset.get("time"),
-                          86400.0 if day else 1.0, "t (days)" if day else "t (s)")
+            tf, tname = time_unit(schedule.end)
+            _plot_safely("overpressure and contact", lambda: poro_plots(stage, case.name, mesh, net, s_arc, snapshots,
+                                                                        series, schedule.end))
+            _plot_safely("monitor", lambda: monitor_plots(stage, case.name, net, s_arc, monitor, snapshots,
+                                                          onset.get("time"), tf, f"t ({tname})"))
+        else:
+            fq = model.fracture_quantities(state)
+            last = {"time": state.time, "slip": slip_since_start(state), "state": fq["state"]}
+            op = model.cell_pressure(state) - p0
+            _plot_safely("3D monitor", lambda: write_3d_plots(stage, collect(
+                case.name, schedule.end, fm, model.mech.face_area, recorder, monitor, last, points, op)))
+        t_plots = time.perf_counter() - t_plots
         total = time.perf_counter() - t_start
         summary = {
             "case": case.name, "version": __version__, "model": "poromechanics",
@@ -174,15 +195,78 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             "slip_onset": onset or None,
             "monitor": {"time": monitor["time"], "overpressure_at_points": monitor["points"],
                         "max_fracture_pressure": monitor["fault_p"], "max_slip": monitor["fault_slip"],
-                        "points": {k: np.round(g.cell_centroid[c], 6).tolist() for k, c in points.items()}},
+                        "points": {k: np.round(g.cell_centroid[c], 6).tolist() for k, c in points.items()},
+                        **recorder.summary(g.cell_centroid)},
             "totals": {"seconds": total, "peak_memory_mb": peak_memory_mb(),
                        "seconds_assembly": timing["assembly"], "seconds_linear": timing["linear"],
                        "seconds_other": total - timing["assembly"] - timing["linear"],
+                       "seconds_plots": t_plots,                      # part of seconds_other
                        "newton_iterations": int(sum(s["newton_iterations"] for s in steps))},
         }
         write_json(stage / "summary.json", summary)
     return summary
 
 
+def case_wells(case: CaseFile, mesh) -> dict:
+    """{well name: cells} of the case's ``[[flow.wells]]`` (empty without)."""
+    flow = getattr(case.spec, "flow", None)
+    wells = getattr(flow, "wells", None) or ()
+    return {w.name: well_cells(mesh, w, f"flow.wells.{w.name}") for w in wells}
+
+
+def run_folder_wells(folder, centroid, lo, hi) -> tuple[dict, str | None]:
+    """({well: cells}, note) of a finished run's folder, from the mesh rebuilt from its case.toml;
+    no wells (and a note) when that mesh's cells are not the run's (another version of the
+    processor) or it cannot be built. centroid, lo, hi: the run's cells (node means, boxes)."""
+    try:
+        case = load_case(str(Path(folder) / "case.toml"))
+        if not (getattr(case.spec, "flow", None) and case.spec.flow.wells):
+            return {}, None
+        mesh = build_fractured_mesh(case).mesh
+        c = mesh.geometry.cell_centroid
+        # the same cells: every rebuilt centroid within half the run's cell box of its node mean
+        if len(c) != len(centroid) or np.any(np.abs(c - centroid) > 0.5 * (hi - lo) + 1e-9):
+            return {}, "wells left out: the mesh rebuilt from case.toml is not the run's"
+        return case_wells(case, mesh), None
+    except Exception as exc:            # the figures are still worth having without the wells
+        return {}, f"wells left out: {type(exc).__name__}: {exc}"
+
+
+def replot(run_dir, out=None) -> list[Path]:
+    """Write the 3D monitor plots of a finished poromechanics run's folder into ``out`` (default:
+    the folder); return the files written (see :func:`polypore.io.monitor3d.from_run_directory`)."""
+    d = from_run_directory(run_dir, wells_of=lambda c, lo, hi: run_folder_wells(run_dir, c, lo, hi))
+    for note in d.notes:
+        log.info("note: %s", note)
+    return write_3d_plots(Path(out or run_dir), d)
+
+
+def main(argv=None) -> int:
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m polypore.runs.coupled",
+                                 description="Write the 3D monitor plots of a finished poromechanics run's folder.")
+    ap.add_argument("run_dir")
+    ap.add_argument("--out", default=None, help="folder for the PNG files (default: the run's folder)")
+    a = ap.parse_args(argv)
+    if not log.handlers:
+        logging.basicConfig(level=logging.INFO, format="[polypore] %(message)s")
+    for p in replot(a.run_dir, a.out):
+        print(f"wrote {p}")
+    return 0
+
+
+def _plot_safely(what: str, draw) -> None:
+    """Draw plots; a failure is a warning (the run's data are already written)."""
+    try:
+        draw()
+    except Exception as exc:
+        log.warning("%s plots not written: %s: %s", what, type(exc).__name__, exc)
+
+
 def _mstate(st):
     return MechanicsState(st.u, st.lam, st.state, st.time)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
