@@ -297,8 +297,28 @@ def test_replot_from_the_run_folder_gives_the_same_data(small_run, tmp_path):
     assert list(d.well_cells_xyz) == ["I1"] and d.t_final == 5 * DAY
     slip_drawn, = [a["polys"][0][0] for a in drawn["fault_maps.png"] if "slip since" in a["title"]]
     np.testing.assert_allclose(d.slip * 1e6, slip_drawn, rtol=1e-6, atol=1e-9)
-    assert coupled.main([str(out), "--out", str(tmp_path)]) == 0
-    assert sorted(p.name for p in tmp_path.glob("*.png")) == sorted(plots3d.FIGURES)
+    assert main(["plot", str(out), "--out", str(tmp_path / "again")]) == 0
+    assert sorted(p.name for p in (tmp_path / "again").glob("*.png")) == sorted(plots3d.FIGURES)
+
+
+def test_plot_command_refuses_what_is_not_a_3d_poromechanics_run(small_run, tmp_path, capsys):
+    """`polypore plot` names RUN_DIR and why, exit 2, no traceback: no folder, a 2D run, a run
+    folder missing its fractures.csv."""
+    out = small_run[0]
+    assert main(["plot", str(tmp_path / "nothing")]) == 2
+    assert "RUN_DIR" in capsys.readouterr().err
+    two_d = tmp_path / "two_d"
+    two_d.mkdir()
+    summary = json.loads((out / "summary.json").read_text())
+    (two_d / "summary.json").write_text(json.dumps({**summary, "mesh": {**summary["mesh"], "dim": 2}}))
+    assert main(["plot", str(two_d)]) == 2
+    assert "2D poromechanics" in capsys.readouterr().err
+    partial = tmp_path / "partial"
+    partial.mkdir()
+    (partial / "summary.json").write_text((out / "summary.json").read_text())
+    assert main(["plot", str(partial)]) == 2
+    err = capsys.readouterr().err
+    assert "fractures.csv" in err and "Traceback" not in err
 
 
 def test_a_failing_plot_is_a_warning_not_a_failed_run(tmp_path, monkeypatch, capfd):

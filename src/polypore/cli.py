@@ -236,6 +236,36 @@ def cmd_convergence(args) -> int:
     return 0
 
 
+def cmd_plot(args) -> int:
+    import json
+
+    folder = Path(args.run_dir)
+    summary = folder / "summary.json"
+    if not summary.is_file():
+        raise InputError("RUN_DIR", f"{str(folder)!r} holds no summary.json: give the folder of a finished "
+                         "'polypore run'")
+    try:
+        info = json.loads(summary.read_text())
+    except (OSError, ValueError) as exc:
+        raise InputError("RUN_DIR", f"cannot read {str(summary)!r}: {exc}") from None
+    if info.get("model") != "poromechanics" or info.get("mesh", {}).get("dim") != 3:
+        raise InputError("RUN_DIR", f"{str(folder)!r} is a {info.get('mesh', {}).get('dim', '?')}D "
+                         f"{info.get('model', '?')} run; 'polypore plot' redraws 3D poromechanics runs "
+                         "(the other runs write all their plots when they run)")
+    missing = [n for n in ("fractures.csv", "solution.pvd") if not (folder / n).is_file()]
+    if missing:
+        raise InputError("RUN_DIR", f"{str(folder)!r} lacks {', '.join(missing)}: not a complete run folder")
+    from .runs.coupled import replot
+
+    try:
+        written = replot(folder, args.out)
+    except (OSError, ValueError, KeyError) as exc:
+        raise InputError("RUN_DIR", f"cannot redraw {str(folder)!r}: {type(exc).__name__}: {exc}") from None
+    for f in written:
+        print(f"wrote {f}")
+    return 0
+
+
 def cmd_schema(args) -> int:
     import json
 
@@ -309,6 +339,10 @@ def build_parser() -> argparse.ArgumentParser:
     _case_arguments(c, "results/<case>-convergence/")
     c.add_argument("--levels", type=int, default=3, help="number of meshes (each halves the mesh size)")
     c.set_defaults(func=cmd_convergence)
+    pl = sub.add_parser("plot", help="redraw the monitor plots of a finished 3D poromechanics run's folder")
+    pl.add_argument("run_dir", metavar="RUN_DIR", help="the folder a 'polypore run' wrote")
+    pl.add_argument("--out", metavar="DIR", help="folder for the PNG files (default: RUN_DIR)")
+    pl.set_defaults(func=cmd_plot)
     s = sub.add_parser("schema", help="print the JSON Schema of case files (for TOML editors)")
     s.add_argument("--out", metavar="FILE", help="write it to FILE instead of printing it")
     s.set_defaults(func=cmd_schema)
@@ -322,7 +356,7 @@ def _start_distributed(args) -> bool:
     from .solvers.distributed import activate, launched_ranks
 
     n = launched_ranks()
-    if n < 1 or args.func in (cmd_cases, cmd_schema):
+    if n < 1 or args.func in (cmd_cases, cmd_schema, cmd_plot):
         return True
     try:
         ctx = activate()

@@ -16,7 +16,7 @@ loop, and a figure that fails is skipped with a warning, never failing the run):
 
 Replot a finished run's folder (this version's or an older run's)::
 
-    python -m polypore.runs.coupled RUN_DIR [--out DIR]
+    polypore plot RUN_DIR [--out DIR]
 """
 
 from __future__ import annotations

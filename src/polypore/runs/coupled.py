@@ -11,7 +11,7 @@ warning, never a failed run.
 
 Replot a finished run's folder (3D; also runs of older versions)::
 
-    python -m polypore.runs.coupled RUN_DIR [--out DIR]
+    polypore plot RUN_DIR [--out DIR]
 """
 
 from __future__ import annotations
@@ -241,21 +241,6 @@ def replot(run_dir, out=None) -> list[Path]:
     return write_3d_plots(Path(out or run_dir), d)
 
 
-def main(argv=None) -> int:
-    import argparse
-
-    ap = argparse.ArgumentParser(prog="python -m polypore.runs.coupled",
-                                 description="Write the 3D monitor plots of a finished poromechanics run's folder.")
-    ap.add_argument("run_dir")
-    ap.add_argument("--out", default=None, help="folder for the PNG files (default: the run's folder)")
-    a = ap.parse_args(argv)
-    if not log.handlers:
-        logging.basicConfig(level=logging.INFO, format="[polypore] %(message)s")
-    for p in replot(a.run_dir, a.out):
-        print(f"wrote {p}")
-    return 0
-
-
 def _plot_safely(what: str, draw) -> None:
     """Draw plots; a failure is a warning (the run's data are already written)."""
     try:
@@ -267,6 +252,3 @@ def _plot_safely(what: str, draw) -> None:
 def _mstate(st):
     return MechanicsState(st.u, st.lam, st.state, st.time)
 
-
-if __name__ == "__main__":
-    raise SystemExit(main())
