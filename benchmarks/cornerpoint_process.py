@@ -1,6 +1,7 @@
 """Benchmark: read and process corner-point grids (GRDECL -> polytopal mesh -> faults as fractures).
 
     .venv/bin/python benchmarks/cornerpoint_process.py [--cells 500000] [--json out.json] [--data DIR]
+                                                       [--process-file OLD_PROCESS_PY]
 
 Grids: Emerald, b.grdecl and SPE9 from the shared test data, and a generated faulted grid of
 about ``--cells`` cells (four faults, two of them ending inside the grid, a pinched-out layer,
@@ -74,12 +75,31 @@ def run(label, path):
     return row
 
 
+def _use_process_file(path: str):
+    """Replace process_grid by the one of another version of process.py (run inside the package)."""
+    import importlib.util
+    import sys
+
+    global process_grid
+    spec = importlib.util.spec_from_file_location("polypore.mesh.cornerpoint._benchmarked_process", path)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module
+    spec.loader.exec_module(module)
+    process_grid = module.process_grid
+    print(f"process_grid from {path}")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--cells", type=int, default=500_000)
     ap.add_argument("--data", default=str(DATA))
     ap.add_argument("--json", default=None)
+    ap.add_argument("--process-file", default=None, metavar="FILE",
+                    help="time process_grid of this file instead (e.g. an older process.py from git show: "
+                         "the before/after comparison of docs/cornerpoint.md)")
     args = ap.parse_args()
+    if args.process_file:
+        _use_process_file(args.process_file)
     rows = []
     data = Path(args.data)
     for name, label in (("eme_small_w_hole_grid_params.grdecl", "Emerald"), ("b.grdecl", "b.grdecl"),

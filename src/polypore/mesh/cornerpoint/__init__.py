@@ -13,12 +13,15 @@ See docs/cornerpoint.md.
 
 from .faults import detect_faults, fault_faces, fault_normals, fractured_mesh
 from .generate import FaultSpec, generate_grid, write_grdecl
-from .process import BOUNDARY_NAMES, MILLIDARCY, CornerPointInfo, cell_permeability, pillar_points, process_grid
+from .info import BOUNDARY_NAMES, CornerPointInfo
+from .permeability import MILLIDARCY, cell_permeability
+from .pillars import pillar_points
+from .process import process_grid, split_nonplanar_faces
 from .reader import CornerPointGrid, read_grdecl
 
 __all__ = [
     "CornerPointGrid", "CornerPointInfo", "FaultSpec", "BOUNDARY_NAMES",
     "read_grdecl", "write_grdecl", "generate_grid", "process_grid", "pillar_points", "cell_permeability",
-    "MILLIDARCY",
+    "MILLIDARCY", "split_nonplanar_faces",
     "detect_faults", "fault_faces", "fault_normals", "fractured_mesh",
 ]

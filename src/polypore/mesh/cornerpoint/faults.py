@@ -1,13 +1,14 @@
 """Faults of a processed corner-point grid: found from the geometry, named, selectable as fractures.
 
 A **fault face** is an interior lateral face whose two cells' corners do not coincide (the
-columns are displaced along the pillar pair), plus every interior face that the FAULTS
-keyword names (a named fault keeps its zero-throw parts). Faces named by FAULTS take that
-name (the first record naming a cell face wins). The other fault faces are grouped into
-connected fault surfaces, in map view: two pillar pairs carrying fault faces are connected
-through a pillar they share when that pillar carries exactly two of them (the fault goes on,
-possibly turning) or when they are collinear (at a T or X junction the straight branches go
-on, the others end). Groups are named ``fault_1``, ``fault_2``, ... by their first face.
+columns are displaced along the pillar pair; judged before the snapping of :mod:`.nodes`),
+plus every interior face that the FAULTS keyword names (a named fault keeps its zero-throw
+parts). Faces named by FAULTS take that name (the first record naming a cell face wins). The
+other fault faces are grouped into connected fault surfaces, in map view: two pillar pairs
+carrying fault faces are connected through a pillar they share when that pillar carries
+exactly two of them (the fault goes on, possibly turning) or when they are collinear (at a T
+or X junction the straight branches go on, the others end). Groups are named ``fault_1``,
+``fault_2``, ... by their first face.
 
 Orientation (:func:`fractured_mesh`): n⁺ is made coherent along each connected surface
 (the + side stays on the same side of the fault trace through turns), then signed so that
