@@ -208,6 +208,11 @@ def _build_fractured_mesh(case: CaseFile) -> FracturedMesh:
                 include[k].update(np.asarray(s.vertices)[:, k].tolist())
         axes = [grid_coordinates(lower[k], upper[k], cells[k], sorted(include[k])) for k in range(dim)]
         mesh = cartesian_mesh(axes)
+    elif m.generator == "simplicial" and m.front == "anisotropic":
+        from ..mesh.generators.fronts import front_mesh
+
+        mesh = front_mesh(lower, upper, specs, m.size, fracture_size=m.fracture_size or m.size, interfaces=interfaces,
+                          tip_size=m.tip_size, tip_grading=m.tip_grading, grading=m.grading, seed=m.seed)
     elif m.generator == "simplicial":
         from ..mesh.generators.simplicial import simplicial_mesh
 

@@ -12,13 +12,14 @@ from .types import Expr, Positive, Table, Text, choice, fail, number, points, ve
 
 # polypore.mesh.generators.mirror.MODES (importing it would load gmsh; tests/test_schema.py compares)
 MIRROR_MODES = ("none", "tips", "fractures")
+FRONTS = ("isotropic", "anisotropic")     # crack-front cells of the simplicial generator (3D)
 GENERATORS = ("cartesian", "simplicial", "voronoi", "agglomerated", "file", "grdecl", "cornerpoint")
 CORNERPOINT = ("grdecl", "cornerpoint")   # corner-point grids (docs/cornerpoint.md): 3D, faults from the grid
 NONPLANAR = ("centre", "diagonal", "keep")   # polypore.mesh.cornerpoint.process_grid(nonplanar=)
 _BOX = {"lower", "upper", "seed", "perturb"}
 GENERATOR_KEYS = {
     "cartesian": _BOX | {"cells", "size"},
-    "simplicial": _BOX | {"size", "fracture_size", "grading", "tip_size", "tip_grading", "mirror"},
+    "simplicial": _BOX | {"size", "fracture_size", "grading", "tip_size", "tip_grading", "mirror", "front"},
     "voronoi": _BOX | {"size"},
     "agglomerated": _BOX | {"size", "fracture_size", "grading", "rounds"},
     "file": {"file"},
@@ -70,6 +71,10 @@ class Mesh(Table):
                                             "quadratic one (mechanics.order = 2)")
     mirror: choice(*MIRROR_MODES) = Field("none", description="simplicial: mesh symmetric about the fractures "
                                           "around tips (2D) or along straight fractures")
+    front: choice(*FRONTS) = Field("isotropic", description="simplicial, 3D: crack-front cells; isotropic (graded "
+                                   "by tip_size, tip_grading) or anisotropic (thin across the fronts, "
+                                   "fracture_size long along them; convex planar fractures apart from each "
+                                   "other and from the box; needs tip_size; docs/accuracy_3d.md)")
     rounds: number(ge=0, integer=True) = Field(2, description="agglomerated: rounds of pairwise merging")
     perturb: number(ge=0, le=0.4) = Field(0.0, description="random node perturbation, fraction of the local "
                                           "edge length")
@@ -118,6 +123,16 @@ class Mesh(Table):
         elif self.size is None:
             fail(f"is required with generator = {self.generator!r}: the target cell size (m)"
                  + (" (or give cells)" if self.generator == "cartesian" else ""), key="size")
+        if self.front == "anisotropic":
+            if len(self.lower) != 3:
+                fail("\"anisotropic\" applies to 3D boxes (in 2D a crack front is a point: use the isotropic "
+                     "tip grading)", key="front")
+            if self.tip_size is None:
+                fail("is required with front = \"anisotropic\": the cell size across the crack fronts (m)",
+                     key="tip_size")
+            if self.mirror != "none":
+                fail(f"{self.mirror!r} does not combine with front = \"anisotropic\" (its front cells are "
+                     "already symmetric about the fracture plane); use mirror = \"none\"", key="mirror")
         if "tip_grading" in self.given() and self.tip_size is None:
             fail("grades the cells towards tips down to tip_size, which is not given (set mesh.tip_size)",
                  key="tip_grading")
