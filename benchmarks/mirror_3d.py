@@ -48,7 +48,7 @@ POLYPORE = Path(sys.executable).parent / "polypore"
 LEVELS = {
     # pinned: the linear space on the √r-graded mesh the case had before it ran P2 (size, fracture_size,
     # tip_size in m) and a finer one
-    "cube-slip-3d": [[f"mesh.size={a}", f"mesh.fracture_size={b}", f"mesh.tip_size={c}", "mesh.grading=0.4",
+    "cube-slip-3d": [["mesh.front=isotropic", f"mesh.size={a}", f"mesh.fracture_size={b}", f"mesh.tip_size={c}", "mesh.grading=0.4",
                       "mesh.tip_grading=0.5", "mechanics.order=1"]
                      for a, b, c in ((0.3, 0.08, 0.015), (0.19, 0.05, 0.0095))],
     # pinned (the case's own defaults may change): crack face size a/5, a/10, a/16

@@ -135,9 +135,10 @@ def test_case_keys_are_validated(tmp_path):
         load_case(_write_case(tmp_path, ['generator = "voronoi"', *box, 'front = "anisotropic"']))
     with pytest.raises(InputError, match=r"^mesh.tip_size: is required with front = \"anisotropic\""):
         load_case(_write_case(tmp_path, ['generator = "simplicial"', *box, 'front = "anisotropic"']))
-    case = load_case("cube-slip-3d", ["mesh.front=anisotropic"])        # the case gives tip_size
-    assert case.spec.mesh.front == "anisotropic"
-    assert load_case("cube-slip-3d").spec.mesh.front == "isotropic"
+    assert load_case("cube-slip-3d").spec.mesh.front == "anisotropic"   # the case's default (issue 13)
+    case = load_case("cube-slip-3d", ["mesh.front=isotropic"])
+    assert case.spec.mesh.front == "isotropic"
+    assert load_case(_write_case(tmp_path, ['generator = "simplicial"', *box])).spec.mesh.front == "isotropic"
 
 
 def test_fractures_it_cannot_mesh_are_refused():

@@ -54,7 +54,8 @@ def test_a_3d_contact_case_is_solver_independent():
     out = {}
     for backend in ("pardiso", "superlu"):
         # the linear space on a coarse √r mesh (the case's own P2 mesh takes SuperLU minutes and 5 GB)
-        case = load_case("cube-slip-3d", [f"solver.linear={backend}", "mechanics.order=1", "mesh.tip_grading=0.5",
+        case = load_case("cube-slip-3d", [f"solver.linear={backend}", "mechanics.order=1", "mesh.front=isotropic",
+                                          "mesh.grading=0.4", "mesh.tip_grading=0.5",
                                           "mesh.size=0.48", "mesh.fracture_size=0.128", "mesh.tip_size=0.024"])
         _, st, _, err, _ = solve_static(case)
         out[backend] = st, err

@@ -83,8 +83,12 @@ def test_estimates_follow_the_meshes(tmp_path):
                             ("single-crack", ["mesh.fracture_size=0.1"]),          # graded about a 2D crack
                             ("penny-pressurised", ["fractures.crack.sides=8", "mesh.fracture_size=0.8"]),
                             # r^(2/3) towards the tip lines (for P2): 2x the cells of the sqrt law
-                            ("cube-slip-3d", ["mesh.size=0.48", "mesh.fracture_size=0.128",
-                                              "mesh.tip_size=0.012", "mesh.tip_grading=0.7"])):
+                            ("cube-slip-3d", ["mesh.front=isotropic", "mesh.grading=0.4", "mesh.size=0.48",
+                                              "mesh.fracture_size=0.128", "mesh.tip_size=0.012",
+                                              "mesh.tip_grading=0.7"]),
+                            # anisotropic crack-front tubes (the case's default) and a finer one
+                            ("cube-slip-3d", []),
+                            ("cube-slip-3d", ["mesh.fracture_size=0.175", "mesh.tip_size=0.0025"])):
         case = load_case(name, overrides)
         est = estimate(case.spec)
         cells = build_fractured_mesh(case).mesh.n_cells

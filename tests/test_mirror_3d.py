@@ -100,7 +100,7 @@ def test_two_fractures_and_a_penny_polygon():
 
 
 def test_case_file_option_and_input_checks():
-    fm = build_fractured_mesh(load_case("cube-slip-3d", ["mesh.mirror=fractures", "mesh.size=0.4",
+    fm = build_fractured_mesh(load_case("cube-slip-3d", ["mesh.front=isotropic", "mesh.mirror=fractures", "mesh.size=0.4",
                                                           "mesh.fracture_size=0.12", "mesh.tip_size=0.04"]))
     (prism,) = mirror_regions("fractures", fm.network.specs, [0, 0, 0], [1, 1, 1], fracture_size=0.12)
     _assert_mirrored(fm.mesh, prism)

@@ -129,7 +129,8 @@ def test_tip_grading_case_key(tmp_path):
     from polypore.setup.casefile import load_case
     from polypore.setup.meshing import build_fractured_mesh
 
-    coarse = ["mesh.size=0.48", "mesh.fracture_size=0.128", "mesh.tip_size=0.012"]
+    coarse = ["mesh.front=isotropic", "mesh.grading=0.4", "mesh.size=0.48", "mesh.fracture_size=0.128",
+              "mesh.tip_size=0.012"]
     n = [build_fractured_mesh(load_case("cube-slip-3d", [*coarse, f"mesh.tip_grading={g}"])).mesh.n_cells
          for g in (0.5, 0.75)]
     assert n[1] > 1.3 * n[0]                 # a steeper law keeps small cells further from the edge
@@ -137,7 +138,7 @@ def test_tip_grading_case_key(tmp_path):
         load_case("cube-slip-3d", ["mesh.tip_grading=1.5"])
     src = (files("polypore.cases") / "data" / "cube-slip-3d.toml").read_text()
     path = tmp_path / "c.toml"
-    without = re.sub(r"(?m)^tip_size = .*\n", "", src)
+    without = re.sub(r"(?m)^(tip_size|front) = .*\n", "", src)
     assert without != src and "tip_grading" in without
     path.write_text(without)
     with pytest.raises(InputError, match=r"mesh\.tip_grading.*tip_size"):
