@@ -34,6 +34,7 @@ import numpy as np
 
 from ..core.errors import RunError
 from .linear import LinearSolver
+from .timing import SPLIT
 
 log = logging.getLogger("polypore")
 
@@ -213,7 +214,8 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
     inc = np.inf
     step = 1.0
     t0 = time.perf_counter()
-    lin = linearise(x)
+    with SPLIT.timed("assembly"):
+        lin = linearise(x)
     t_asm += time.perf_counter() - t0
     for it in range(options.max_iterations + 1):
         rnorm = max(lin.block_norms.values()) if lin.block_norms else 0.0
@@ -250,20 +252,25 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
                                "time steps help")
         prev_active = None if lin.active_set is None else lin.active_set.copy()
         t0 = time.perf_counter()
-        if inexact and lin.row_scale is not None:
-            fnorm = float(np.linalg.norm(lin.row_scale * lin.residual))
-            eta = forcing_term(fnorm, prev_fnorm, prev_eta, it == 0 or same, options)
-            row["forcing"] = eta
-            dx = solver.solve(lin.jacobian, -lin.residual, target=KrylovTarget(lin.row_scale, eta))
-            prev_fnorm, prev_eta = fnorm, eta
-        else:
-            dx = solver.solve(lin.jacobian, -lin.residual)
+        with SPLIT.timed("linear"):
+            if inexact and lin.row_scale is not None:
+                fnorm = float(np.linalg.norm(lin.row_scale * lin.residual))
+                eta = forcing_term(fnorm, prev_fnorm, prev_eta, it == 0 or same, options)
+                row["forcing"] = eta
+                dx = solver.solve(lin.jacobian, -lin.residual, target=KrylovTarget(lin.row_scale, eta))
+                prev_fnorm, prev_eta = fnorm, eta
+            else:
+                dx = solver.solve(lin.jacobian, -lin.residual)
         t_lin += time.perf_counter() - t0
+        # the Jacobian is not needed any more: its memory (on N ranks this rank's rows) is free
+        # before the line search assembles the next one
+        lin.jacobian = None
         merit0 = _merit(lin)
         step = 1.0
         t0 = time.perf_counter()
         while True:
-            trial = linearise(x + step * dx)
+            with SPLIT.timed("assembly"):
+                trial = linearise(x + step * dx)
             if it < options.free_steps or step <= options.min_step or \
                     _merit(trial) <= (1 - 1e-4 * step) * merit0 or not np.isfinite(merit0):
                 break
