@@ -74,6 +74,7 @@ class Phases:
     def __init__(self, trim=False):
         self.trim = trim
         self.stack = []                      # [name, rss at entry, peak so far]
+        self.timeline = []                   # (name, rss at entry, peak during, rss at exit)
         self.rows = defaultdict(lambda: {"calls": 0, "kept_first": None, "kept_total": 0.0, "peak": 0.0,
                                          "seconds": 0.0, "cpu": 0.0})
 
@@ -109,6 +110,7 @@ class Phases:
                     row["kept_first"] = rss1 - rss0
                 row["kept_total"] += rss1 - rss0
                 row["peak"] = max(row["peak"], fr[2] - rss0)
+                phases.timeline.append((label.strip(), round(rss0, 1), round(fr[2], 1), round(rss1, 1)))
                 row["seconds"] += time.perf_counter() - t0
                 row["cpu"] += time.process_time() - c0
 
@@ -231,7 +233,7 @@ def main(argv=None):
     if args.trim:
         _trim()
     me = {"end_mb": _status()["VmRSS"], "rank": 0 if ctx is None else ctx.rank, "phases": dict(ph.rows), "held_mb": held_bytes(roots),
-          "peak_mb": _status()["VmHWM"], "start_mb": start_mb, "peak_run_mb": __import__("resource").getrusage(
+          "peak_mb": _status()["VmHWM"], "start_mb": start_mb, "timeline": ph.timeline, "peak_run_mb": __import__("resource").getrusage(
               __import__("resource").RUSAGE_SELF).ru_maxrss / 1024, "seconds": time.perf_counter() - t0}
     allr = [me] if ctx is None else ctx.comm.gather(me, root=0)
     if ctx is None or ctx.root:

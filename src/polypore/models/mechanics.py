@@ -23,6 +23,7 @@ import scipy.sparse as sp
 from ..assembly.elasticity import elasticity_matrix
 from ..assembly.pattern import BlockPattern
 from ..core.errors import InputError
+from ..core.memory import trim_heap
 from ..discretisation import DisplacementSpace, Operators, QuadraticOperators, QuadraticSpace
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
@@ -251,6 +252,7 @@ class ContactMechanics:
         self.newton = newton or NewtonOptions(label="contact Newton")
         if self.layout is not None:
             register_layout(self.solver, self.layout)
+        trim_heap()                 # the set-up's temporaries (core/memory.py)
         self.seconds_setup = time.perf_counter() - t0
         log.info("mechanics: order %d, %d displacement dofs (%d free), %d multipliers, %s bubbles; set up in %.2f s",
                  self.order, self.n_dofs, self.free.size, self.n_ff * d,
@@ -412,6 +414,11 @@ class ContactMechanics:
                   (nfree + lr, nfree + lc)]
         return blocks, [A.data[ka], bt_vals, None, None]
 
+    def release_assembly(self) -> None:
+        """Free the Jacobian's pattern and fixed values (the coupled model needs them for its
+        initial equilibrium only); the next :meth:`linearise` builds them again."""
+        self.pattern = self._fixed_vals = None
+
     def _setup_pattern(self, J):
         """All (row, col) contributions of the Newton Jacobian, restricted to free dofs, built once
         (on N ranks: this rank's rows, distributed numbering)."""
@@ -487,6 +494,8 @@ class ContactMechanics:
         Au, Bl = self.A @ u, self.Bv.T @ lam.ravel()          # A: a RowBlock on N ranks (gathered)
         Ru = Au + Bl - F
         Ru_f = Ru[self.free]
+        if self.pattern is None:
+            self._setup_pattern(self.ops.jump.tocoo())
         jrow, jval, keep = self._cu
         b = self.law.beta
         pat = self.pattern

@@ -61,6 +61,7 @@ import scipy.sparse as sp
 
 from ..assembly.pattern import BlockPattern
 from ..core.errors import InputError, RunError
+from ..core.memory import trim_heap
 from ..mesh import FracturedMesh
 from ..solvers.distributed import OwnedRows, RowBlock, local_rows, owned_layout, register_layout
 from ..solvers.linear import LinearSolver
@@ -199,6 +200,7 @@ class Poromechanics:
         self._setup_stabilisation(pressure_stabilisation)
         self._setup_flow_dofs()
         self._setup_pattern()
+        trim_heap()                 # the set-up's temporaries (core/memory.py)
         self.seconds_setup = time.perf_counter() - t0
         log.info("poromechanics: %d free displacement dofs, %d multipliers, %d free pressures; set up in %.2f s",
                  self.mech.free.size, self.n_ff * self.dim, self.flow_free.size, self.seconds_setup)
@@ -264,10 +266,6 @@ class Poromechanics:
         self.stabilisation_pairs = pairs[keep]                               # (n_pairs, 2) cells (K, L)
         self.stabilisation_weights = w[keep]                                 # δ w_σ, m^d/Pa
         self._stab_pos = pos[keep]                                           # their (cell, face) entries
-        K, L = self.dofs.n + self.stabilisation_pairs.T
-        self._stab_rc = (np.concatenate([K, L, K, L]), np.concatenate([K, L, L, K]))
-        w = self.stabilisation_weights
-        self._stab_vals = np.concatenate([w, w, -w, -w])
 
     def stabilisation_matrix(self) -> sp.csr_array:
         """S_δ (n_flow, n_flow), m³/Pa: the pressure-jump stabilisation of the mass balance.
@@ -284,8 +282,19 @@ class Poromechanics:
         k_K = n_σ·K_K n_σ. The step adds S_δ(p^n − p^{n−1}, q) to the Δt-scaled mass balances
         (m³ per step).
         """
-        r, c = self._stab_rc
-        return sp.csr_array((self._stab_vals, (r, c)), shape=(self.n_flow, self.n_flow))
+        r, c = self._stab_rc()
+        return sp.csr_array((self._stab_vals(), (r, c)), shape=(self.n_flow, self.n_flow))
+
+    def _stab_rc(self) -> tuple[np.ndarray, np.ndarray]:
+        """(rows, cols) (4 n_pairs,) of S_δ's entries: (K, K), (L, L), (K, L), (L, K) per pair
+        (computed when needed: the model keeps only the pairs and weights)."""
+        K, L = self.dofs.n + self.stabilisation_pairs.T
+        return np.concatenate([K, L, K, L]), np.concatenate([K, L, L, K])
+
+    def _stab_vals(self) -> np.ndarray:
+        """(4 n_pairs,) S_δ's entries in the order of :meth:`_stab_rc`, m³/Pa."""
+        w = self.stabilisation_weights
+        return np.concatenate([w, w, -w, -w])
 
     def stabilisation_jumps(self, p: np.ndarray) -> np.ndarray:
         """(n_pairs,) p_K − p_L across the faces of S_δ (``stabilisation_pairs``) for a (n_flow,)
@@ -308,7 +317,7 @@ class Poromechanics:
         Af = self.asm.full_matrix(np.ones(self._nc), np.ones(self.n_ff), np.ones(self.n_ff), np.zeros(self.n_ff))
         r = np.repeat(np.arange(self.n_flow), np.diff(Af.indptr))
         fl = self.flow_layout
-        self._af_pattern = BlockPattern.build([(r, Af.indices), self._stab_rc], Af.shape,
+        self._af_pattern = BlockPattern.build([(r, Af.indices), self._stab_rc()], Af.shape,
                                               row_local=None if fl is None else fl.local_index,
                                               n_rows=None if fl is None else fl.n_local)
         pat = self._af_pattern.pattern
@@ -451,7 +460,7 @@ class Poromechanics:
         Af = self.asm.full_matrix(s_cell, ex, fc, s_frac)
         # the stabilisation acts on the increment: S_δ p^n in the matrix, S_δ p^{n−1} on the right
         pat = self._af_pattern
-        A_dt = pat.fill([pat.take(0, Af.data * dt), pat.take(1, self._stab_vals)])
+        A_dt = pat.fill([pat.take(0, Af.data * dt), pat.take(1, self._stab_vals())])
         if self.flow_layout is not None:
             A_dt = RowBlock(A_dt, self.flow_layout)
         ids, vals, qflux = self.flow._dirichlet(t)
@@ -534,8 +543,10 @@ class Poromechanics:
             u, lam = mech._split(res.x, udir)
             state = mech.linearise(res.x, F, udir, None).active_set
             u = u.reshape(-1, d)
+            # the contact Jacobian's pattern, and the contact solver's PETSc matrices and AMG, are
+            # not needed by the steps
+            mech.release_assembly()
             if mech.solver is not self.solver and hasattr(mech.solver, "release"):
-                # the contact solver's PETSc matrices and AMG are not needed by the steps
                 mech.solver.release()
         else:
             u = np.asarray(mech.interpolate(u0, t0) if callable(u0) else u0, float).reshape(-1, d)
@@ -553,6 +564,7 @@ class Poromechanics:
         mech, d = self.mech, self.dim
         u = mech.dirichlet_vector(t0).reshape(-1, d)
         self.u_ref = u.copy()
+        mech.release_assembly()                 # no contact solve: the steps do not need it
         zero = np.zeros((self.n_ff, d))
         state = linearise_contact(mech.law, self.lam0, zero, zero, mech.normal, mech.face_area)[3]
         if self.n_ff:

@@ -175,10 +175,10 @@ class DofLayout:
 
     Attributes
     ----------
-    perm : (n,) int64, serial index of every distributed index (new → old)
-    inv : (n,) int64, distributed index of every serial index (old → new)
+    perm : (n,) int32 (int64 beyond 2³¹), serial index of every distributed index (new → old)
+    inv : (n,) int32 (int64 beyond 2³¹), distributed index of every serial index (old → new)
     counts : (size,) int64, unknowns per rank; start, end : this rank's rows [start, end)
-    owned : (end − start,) int64, serial indices of this rank's rows, in distributed order
+    owned : (end − start,) serial indices of this rank's rows, in distributed order
     """
 
     def __init__(self, owner: np.ndarray, comm):
@@ -188,9 +188,12 @@ class DofLayout:
             raise ValueError(f"owner ranks must lie in [0, {size}), got [{owner.min()}, {owner.max()}]")
         self.comm = comm
         self.n = owner.size
-        self.perm = np.argsort(owner, kind="stable").astype(np.int64)
-        self.inv = np.empty(self.n, np.int64)
-        self.inv[self.perm] = np.arange(self.n)
+        # int32 where it fits: a model keeps a layout per system (Newton unknowns, displacement
+        # dofs, flow unknowns), replicated on every rank
+        it = np.int32 if self.n < 2**31 - 1 else np.int64
+        self.perm = np.argsort(owner, kind="stable").astype(it)
+        self.inv = np.empty(self.n, it)
+        self.inv[self.perm] = np.arange(self.n, dtype=it)
         self.counts = np.bincount(owner, minlength=size).astype(np.int64)
         starts = np.concatenate([[0], np.cumsum(self.counts)])
         self.start, self.end = int(starts[rank]), int(starts[rank + 1])
@@ -236,11 +239,11 @@ class DofLayout:
 
     @property
     def local_index(self) -> np.ndarray:
-        """(n,) int64 local row (0 … n_local − 1) of every serial unknown this rank owns, −1 for the
-        others."""
+        """(n,) local row (0 … n_local − 1) of every serial unknown this rank owns, −1 for the
+        others (the dtype of ``perm``)."""
         li = getattr(self, "_local_index", None)
         if li is None:
-            li = np.full(self.n, -1, np.int64)
+            li = np.full(self.n, -1, self.perm.dtype)
             li[self.owned] = np.arange(self.n_local)
             self._local_index = li
         return li

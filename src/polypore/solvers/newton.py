@@ -33,6 +33,7 @@ from typing import Callable
 import numpy as np
 
 from ..core.errors import RunError
+from ..core.memory import trim_heap
 from .linear import LinearSolver
 from .timing import SPLIT
 
@@ -262,9 +263,10 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
             else:
                 dx = solver.solve(lin.jacobian, -lin.residual)
         t_lin += time.perf_counter() - t0
-        # the Jacobian is not needed any more: its memory (on N ranks this rank's rows) is free
-        # before the line search assembles the next one
+        # the Jacobian is not needed any more: its memory (on N ranks this rank's rows) and the
+        # solve's temporaries go back to the system before the line search assembles the next one
         lin.jacobian = None
+        trim_heap()
         merit0 = _merit(lin)
         step = 1.0
         t0 = time.perf_counter()
