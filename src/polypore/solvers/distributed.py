@@ -318,7 +318,9 @@ class RowBlock:
         return self.layout.gather(d)
 
     def __abs__(self) -> "RowBlock":
-        return RowBlock(abs(self.local), self.layout)
+        """|op| entry by entry; shares this operator's index arrays (only the values are new)."""
+        L = self.local
+        return RowBlock(sp.csr_matrix((np.abs(L.data), L.indices, L.indptr), shape=L.shape), self.layout)
 
     @property
     def nnz(self) -> int:

@@ -252,6 +252,7 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
                                f"(best {min(r):.3e}, now {rnorm:.3e}; active sets cycling) — smaller load or "
                                "time steps help")
         prev_active = None if lin.active_set is None else lin.active_set.copy()
+        trim_heap()                 # the assembly's temporaries, before the solver's allocations
         t0 = time.perf_counter()
         with SPLIT.timed("linear"):
             if inexact and lin.row_scale is not None:
