@@ -260,23 +260,33 @@ class DofLayout:
         return self.perm[self.field(serial)]
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(eq=False)
 class OwnedRows:
     """This rank's rows of the matrix of a distributed linear system (Newton's Jacobian on N ranks).
 
     Attributes
     ----------
     rows : csr (n_local, n), rows ``layout.start`` … ``layout.end − 1`` of P A Pᵀ (P the layout's
-        permutation): the rows of the unknowns ``layout.owned``, columns in the distributed numbering
+        permutation): the rows of the unknowns ``layout.owned``, columns in the distributed numbering;
+        None once a solver has taken them (:meth:`take`)
     layout : DofLayout of the system
     """
 
-    rows: sp.csr_matrix
+    rows: sp.csr_matrix | None
     layout: "DofLayout"
 
     @property
     def shape(self) -> tuple[int, int]:
         return (self.layout.n, self.layout.n)
+
+    def take(self) -> sp.csr_matrix:
+        """The rows, handed over: this object lets go of them, so that a solver that has copied
+        them into PETSc frees them before its Krylov iterations (Newton holds the Jacobian
+        until its solve returns). A second take is an error."""
+        if self.rows is None:
+            raise ValueError("the rows of this OwnedRows were taken by a solve already")
+        rows, self.rows = self.rows, None
+        return rows
 
 
 class RowBlock:

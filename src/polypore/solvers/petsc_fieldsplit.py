@@ -309,7 +309,8 @@ class _FieldSplitBase:
         """(R, blocks): the rows this rank passes PETSc (csr, canonical; all rows serially) and where
         the fields lie in them (:class:`_RowBlocks`, rebuilt when the layout changes)."""
         if isinstance(J, OwnedRows):
-            R, lay = _canonical(J.rows), J.layout
+            lay = J.layout
+            R = _canonical(J.take())
         else:
             J = _canonical(J)
             lay = layout_for(self, J.shape[0])
@@ -363,10 +364,11 @@ class _FieldSplitBase:
         self.driver.defaults["ksp_rtol"] = repr(rtol)         # read by set-ups (setFromOptions)
         self.driver.ksp.setTolerances(rtol=rtol)              # and by a reused preconditioner's KSP
 
-    def _run(self, R, blk, rhs, Ml, shift, new, new_step: bool = False, target=None):
+    def _run(self, blk, rhs, new, new_step: bool = False, target=None):
+        """The Krylov solve once :meth:`_matrices` has put J and P into PETSc (the caller has let
+        go of its rows by then: they are not needed during the iterations)."""
         n = blk.n
         nu, po = self.n_u, self._po(n)                      # the fields in the serial numbering
-        self._matrices(R, Ml, shift, blk, new)
         self._sizes = (nu, po - nu, po, n)
         if new:
             self._nsp_u = None if self.near_nullspace is None else near_nullspace(self._rows(self.near_nullspace,
@@ -517,7 +519,9 @@ class PetscBlockContactSolver(_FieldSplitBase):
         new = self._pattern_changed(R)
         with SPLIT.timed("preconditioner"):
             Ml = contact_rows(self.condensation, R, blk)
-        x = self._run(R, blk, rhs, Ml, None, new, target=target)
+        self._matrices(R, Ml, None, blk, new)
+        del R, Ml                   # in PETSc now; OwnedRows.take() left no other reference
+        x = self._run(blk, rhs, new, target=target)
         self.seconds += time.perf_counter() - t0
         log.debug("PETSc block contact solver: %d GMRES iterations, %.2f s", self.iterations[-1],
                   time.perf_counter() - t0)
@@ -659,7 +663,9 @@ class PetscBlockPoroSolver(_FieldSplitBase):
                 self._lump = lumped_coupling(R, blk)
                 self._fkey = fkey
             Ml = contact_rows(self.condensation, R, blk) if nl else None
-        x = self._run(R, blk, rhs, Ml, self._lump, new, new_step, target)
+        self._matrices(R, Ml, self._lump, blk, new)
+        del R, Ml                   # in PETSc now; OwnedRows.take() left no other reference
+        x = self._run(blk, rhs, new, new_step, target)
         self.seconds += time.perf_counter() - t0
         log.debug("PETSc block poro solver: %d GMRES iterations, %.2f s", self.iterations[-1],
                   time.perf_counter() - t0)
