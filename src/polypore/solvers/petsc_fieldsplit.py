@@ -233,7 +233,7 @@ class _PreconditionerPattern:
             self.pos_J = np.searchsorted(keys, _keys(R.indptr, R.indices, n)).astype(it)
         self.shape = S.shape
         self.a, self.b = int(S.indptr[nu]), int(S.indptr[po])
-        self.keys_l = keys[self.a:self.b]
+        self.keys_l = keys[self.a:self.b].copy()       # a view would keep all of P's keys alive
         self.pos_pdiag = np.searchsorted(keys, pr * n + row0 + pr).astype(it)
         self.nu, self.n = nu, n
 
