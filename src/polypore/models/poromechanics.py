@@ -327,7 +327,8 @@ class Poromechanics:
         c = pat.indices.astype(np.int64)
         self._af_keep = (self.flow_free_index[r] >= 0) & (self.flow_free_index[c] >= 0)
         it = np.int32 if self.n_flow < 2**31 - 1 else np.int64
-        self._af_rc = (self.flow_free_index[r[self._af_keep]].astype(it), self.flow_free_index[c[self._af_keep]].astype(it))
+        keep = self._af_keep
+        self._af_rc = (self.flow_free_index[r[keep]].astype(it), self.flow_free_index[c[keep]].astype(it))
 
     def _setup_pattern(self):
         """Every (row, col) contribution of the step Jacobian, restricted to unknowns, built once

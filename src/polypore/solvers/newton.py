@@ -47,7 +47,8 @@ class Linearisation:
     Attributes
     ----------
     residual : (n,) residual vector F(x)
-    jacobian : (n, n) sparse generalised Jacobian
+    jacobian : (n, n) sparse generalised Jacobian; on N ranks this rank's rows of it
+        (:class:`~.distributed.OwnedRows`). Newton drops it after its linear solve.
     block_norms : dict name -> scaled residual norm (dimensionless: each block's residual
         against the size of its own terms, 1 = nothing solved yet)
     counts : dict label -> int (e.g. open / stick / slip faces), logged

@@ -168,8 +168,6 @@ def lumped_coupling(R: sp.csr_matrix, blk: _RowBlocks) -> np.ndarray:
     if lay is None:
         A, Gup, Gpu = R[:nu, :nu], R[:nu, po:], R[po:, :nu]
         return np.asarray((Gpu @ sp.diags(1.0 / A.diagonal())).multiply(Gup.T).sum(axis=1)).ravel()
-    from .distributed import _mpi
-
     U = R[:nu].tocoo()
     diag = np.zeros(nu)
     on = U.col == row0 + U.row
@@ -195,9 +193,11 @@ def lumped_coupling(R: sp.csr_matrix, blk: _RowBlocks) -> np.ndarray:
     vals = P.data[isu]
     ri = recv[:, 0].astype(np.int64) - row0 - po
     k = ri * blk.n + recv[:, 1].astype(np.int64)
-    pos = np.minimum(np.searchsorted(keys, k), max(len(keys) - 1, 0))
-    hit = (len(keys) > 0) & (keys[pos] == k) if len(keys) else np.zeros(len(k), bool)
     out = np.zeros(blk.n_rows - po)
+    if not len(keys):
+        return out
+    pos = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
+    hit = keys[pos] == k                       # G_up,ji without a G_pu,ij adds nothing
     np.add.at(out, ri[hit], vals[pos[hit]] * recv[hit, 2])
     return out
 
