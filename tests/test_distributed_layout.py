@@ -85,3 +85,52 @@ def test_layout_makes_each_ranks_unknowns_contiguous_in_serial_order():
     assert np.array_equal(np.concatenate(blocks), np.argsort(owner, kind="stable"))
     one = DofLayout.contiguous(n, FakeComm(0, 1))
     assert np.array_equal(one.owned, np.arange(n))
+
+
+def test_block_pattern_restricted_to_a_ranks_rows_is_those_rows_of_the_whole_pattern():
+    """Each rank's pattern (its rows, distributed columns) filled with its blocks' kept values gives
+    exactly, bit for bit, its rows of the whole filled matrix: duplicates are summed in the same
+    order (what the models' owned-row assembly relies on)."""
+    from polypore.assembly.pattern import BlockPattern
+
+    rng = np.random.default_rng(7)
+    n = 37
+    blocks = [(rng.integers(0, n, 200), rng.integers(0, n, 200)),          # duplicates on purpose
+              (rng.integers(0, n, (15, 3, 3)), rng.integers(0, n, (15, 3, 3))),
+              (np.arange(n), np.arange(n))]
+    values = [rng.standard_normal(200), rng.standard_normal((15, 3, 3)), rng.standard_normal(n)]
+    whole = BlockPattern.build(blocks, (n, n))
+    full = whole.fill([whole.take(k, v) for k, v in enumerate(values)])
+    owner = rng.integers(0, 3, n)
+    total = 0
+    for r in range(3):
+        lay = DofLayout(owner, FakeComm(r, 3))
+        part = BlockPattern.build(blocks, (n, n), row_local=lay.local_index, col_map=lay.inv, n_rows=lay.n_local)
+        R = part.fill([part.take(k, v) for k, v in enumerate(values)])
+        ref = lay.rows(full)
+        assert R.shape == ref.shape == (lay.n_local, n)
+        assert np.array_equal(R.indptr, ref.indptr) and np.array_equal(R.indices, ref.indices)
+        assert np.array_equal(R.data, ref.data)
+        total += R.nnz
+    assert total == full.nnz
+    assert all(k is None for k in whole.keep)                  # unrestricted: no index lists
+
+
+def test_run_summary_has_the_time_split(tmp_path, cli):
+    """summary.json's totals: assembly, preconditioner set-up, Krylov and the rest add up to the run's
+    seconds (wall and CPU), the linear solves contain set-up and Krylov; `polypore run` prints it."""
+    out = tmp_path / "c5"
+    code, text, err = cli("run", "dfm-3d", "--out", str(out), "--set", "mesh.size=0.25", "--set", "time.end=2",
+                          "--set", "time.output_times=[2.0]", "--set", "solver.linear=block-amg")
+    assert code == 0, err
+    import json
+
+    t = json.loads((out / "summary.json").read_text())["totals"]
+    for clock in (t, t["cpu"]):
+        parts = [clock[f"seconds_{k}"] for k in ("assembly", "preconditioner", "krylov", "other")]
+        assert all(p >= 0 for p in parts[:3]) and clock["seconds_krylov"] > 0 and clock["seconds_assembly"] > 0
+        assert abs(sum(parts) - clock["seconds"]) <= 1e-9 * clock["seconds"]
+        assert clock["seconds_preconditioner"] + clock["seconds_krylov"] <= clock["seconds_linear"] + 1e-9
+    assert "ranks" not in t and t["peak_memory_mb"] > 0
+    line = [ln for ln in text.splitlines() if ln.strip().startswith("time:")]
+    assert len(line) == 1 and "preconditioner set-up" in line[0] and "Krylov" in line[0]

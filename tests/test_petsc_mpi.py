@@ -61,6 +61,99 @@ def test_two_rank_solve_equals_scipy(tmp_path):
         assert res[amg]["block_size"] == 3 and res[amg]["iterations"] > 0
 
 
+# ---- distributed assembly: each rank's rows against the serial model's (docs/parallel.md) ----------
+ASSEMBLY = textwrap.dedent("""
+    import json, sys
+    import numpy as np, scipy.sparse as sp
+    from mpi4py import MPI
+    from polypore.solvers import distributed as dist
+    from polypore.solvers.petsc_fieldsplit import _RowBlocks, lumped_coupling
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import build_fractured_mesh
+    from polypore.setup.poromechanics import poro_setup
+
+    comm = MPI.COMM_WORLD
+    sets = ["mesh.size=0.2", "time.end=4", "time.output_times=[4.0]"]
+    dist.activate()
+    case = load_case("dfm-3d", sets + ["solver.linear=block-petsc"])
+    fm = build_fractured_mesh(case)
+    model = poro_setup(case, fm)[0]
+    st = model.initial_state(1e5)                        # a distributed contact solve
+    for _ in range(2):                                   # two distributed steps: faces slip
+        st, _info = model.step(st, 2.0, energy=False)
+    ctx, x0 = model.step_context(st, 2.0, st.time + 2.0)
+    lin = model._linearise(x0, ctx)
+    mech = model.mech
+    F, udir = mech.load_vector(st.time), mech.dirichlet_vector(st.time)
+    xm = x0[:mech.free.size + model.n_ff * model.dim]
+    clin = mech.linearise(xm, F, udir, (mech.Jv @ st.u.ravel()).reshape(-1, model.dim))
+    dist.deactivate()
+    serial = poro_setup(load_case("dfm-3d", sets + ["solver.linear=superlu"]), fm)[0]   # same mesh
+    serial.u_ref = model.u_ref
+    ctx_s, x0_s = serial.step_context(st, 2.0, st.time + 2.0)
+    lin_s = serial._linearise(x0_s, ctx_s)
+    smech = serial.mech
+    clin_s = smech.linearise(xm, F, udir, (smech.Jv @ st.u.ravel()).reshape(-1, model.dim))
+
+    def same_rows(owned, full):
+        ref = owned.layout.rows(full)
+        R = sp.csr_matrix(owned.rows)
+        return (R.shape == ref.shape and np.array_equal(R.indptr, ref.indptr)
+                and np.array_equal(R.indices, ref.indices) and np.array_equal(R.data, ref.data))
+
+    lay = lin.jacobian.layout
+    nu, nl = mech.free.size, model.n_ff * model.dim
+    blk = _RowBlocks(lay, lay.n, nu, nu + nl, model.dim)
+    lump = lumped_coupling(sp.csr_matrix(lin.jacobian.rows), blk)
+    J = sp.csr_matrix(lin_s.jacobian)
+    lump_s = lumped_coupling(J, _RowBlocks(None, J.shape[0], nu, nu + nl, model.dim))
+    mine = lump_s[lay.owned[blk.po:] - (nu + nl)]
+    me = {"rank": comm.rank, "rows": [lay.start, lay.end], "n": lay.n,
+          "slip": int(lin.counts.get("slip", 0)),
+          "jacobian_rows": same_rows(lin.jacobian, lin_s.jacobian),
+          "residual": bool(np.array_equal(lin.residual, lin_s.residual)),
+          "norms": lin.block_norms == lin_s.block_norms,
+          "row_scale": bool(np.array_equal(lin.row_scale, lin_s.row_scale)),
+          "contact_jacobian_rows": same_rows(clin.jacobian, clin_s.jacobian),
+          "contact_residual": bool(np.array_equal(clin.residual, clin_s.residual)),
+          "lump": float(np.max(np.abs(lump - mine)) / max(np.max(np.abs(mine)), 1e-300)) if mine.size else 0.0,
+          "serial_nnz": int(J.nnz), "local_nnz": int(lin.jacobian.rows.nnz)}
+    allr = comm.gather(me, root=0)
+    if comm.rank == 0:
+        print(json.dumps(allr))
+""")
+
+
+def test_each_rank_assembles_exactly_its_rows_of_the_serial_system(tmp_path):
+    """On 2 ranks the poromechanics (coarse C5, after two steps: slipping faces) and contact Jacobians
+    are assembled row by row: each rank's rows are exactly (bit for bit) its rows of the serial
+    Jacobian, the rows of the two ranks make the whole matrix, and the gathered residual, block norms
+    and row weights equal the serial ones bit for bit. The Ŝ_p coupling diagonal, whose
+    displacement rows lie on other ranks, equals the serial one to round-off."""
+    pytest.importorskip("petsc4py.PETSc")
+    pytest.importorskip("mpi4py")
+    pytest.importorskip("pymetis")
+    mpiexec = shutil.which("mpiexec")
+    if mpiexec is None:
+        pytest.skip("no mpiexec (Open MPI's openmpi-bin)")
+    script = tmp_path / "assembly.py"
+    script.write_text(ASSEMBLY)
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": os.pathsep.join(
+        [os.path.join(os.path.dirname(__file__), "..", "src"), os.environ.get("PYTHONPATH", "")])}
+    p = subprocess.run([mpiexec, "--allow-run-as-root", "--oversubscribe", "-n", "2", sys.executable, str(script)],
+                       capture_output=True, text=True, timeout=600, env=env)
+    assert p.returncode == 0, p.stderr[-3000:]
+    res = json.loads([ln for ln in p.stdout.splitlines() if ln.startswith("[")][-1])
+    (a0, b0), (a1, b1) = res[0]["rows"], res[1]["rows"]
+    assert a0 == 0 and b0 == a1 and b1 == res[0]["n"] and 0 < b0 < b1            # both ranks own rows
+    assert res[0]["local_nnz"] + res[1]["local_nnz"] == res[0]["serial_nnz"]
+    for r in res:
+        assert r["slip"] > 0, r
+        assert r["jacobian_rows"] and r["contact_jacobian_rows"], r
+        assert r["residual"] and r["norms"] and r["row_scale"] and r["contact_residual"], r
+        assert r["lump"] <= 1e-12, r
+
+
 # ---- distributed runs: `mpiexec -n 2 polypore run CASE` against the serial run (docs/parallel.md) ----
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "benchmarks"))
 

@@ -181,10 +181,29 @@ def cmd_run(args) -> int:
     parts.append(f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB"
                  + (f" (ranks: {'/'.join(f'{p:.0f}' for p in peaks)} MB)" if peaks else ""))
     print(f"case {case.name}: " + "; ".join(parts))
+    for line in _time_split_lines(summary["totals"]):
+        print(line)
     for name, v in summary.get("errors", {}).items():
         print(f"  {name} = {v:.4e}")
     print(f"wrote {out}/")
     return 0
+
+
+def _time_split_lines(totals: dict) -> list[str]:
+    """One line per rank (one for a serial run): where the time went, wall and CPU seconds
+    (summary.json's ``totals``; docs/parallel.md, "Time split")."""
+    if "seconds_krylov" not in totals:
+        return []
+    rows = totals.get("ranks") or [totals]
+    keys = (("assembly", "assembly"), ("preconditioner", "preconditioner set-up"), ("krylov", "Krylov"),
+            ("other", "other"))
+    out = []
+    for r, t in enumerate(rows):
+        who = f" rank {r}" if len(rows) > 1 else ""
+        parts = [f"{label} {t[f'seconds_{k}']:.1f} s" for k, label in keys]
+        cpu = "/".join(f"{t['cpu'][f'seconds_{k}']:.1f}" for k, _ in keys)
+        out.append(f"  time{who}: " + ", ".join(parts) + f" (CPU {cpu} s)")
+    return out
 
 
 def _rank_peaks() -> list[float] | None:

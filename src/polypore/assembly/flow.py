@@ -125,11 +125,20 @@ class FlowAssembler:
         self.dofs = FlowDofs.build(mesh, network)
         self.t, self.tau = self.hfv.row_sums()
         self.ft_unit, self.ftau_unit = self.fhfv_unit.row_sums()
-        t1 = time.perf_counter()
-        self._pattern = self._build_pattern()
+        self._condensed_pattern = None
         self._full_pattern = None
-        self.setup_timings = {"local_operators": t1 - t0, "pattern": time.perf_counter() - t1}
+        self.setup_timings = {"local_operators": time.perf_counter() - t0, "pattern": 0.0}
         self.last_timings = {}
+
+    @property
+    def _pattern(self) -> Pattern:
+        """The condensed system's pattern, built at the first :meth:`system` (the monolithic
+        poromechanics Newton uses :meth:`full_matrix` only, and would hold it for nothing)."""
+        if self._condensed_pattern is None:
+            t0 = time.perf_counter()
+            self._condensed_pattern = self._build_pattern()
+            self.setup_timings["pattern"] = time.perf_counter() - t0
+        return self._condensed_pattern
 
     # -- sparsity -------------------------------------------------------------------------
     def _contributions(self, full: bool):

@@ -19,7 +19,7 @@ class Pattern:
     ----------
     shape : (n_rows, n_cols)
     indptr, indices : CSR structure (int32/int64)
-    slot : (n_contributions,) int64, position of each contribution in ``data``.
+    slot : (n_contributions,) int32 (int64 beyond 2³¹ entries), position of each contribution in ``data``.
     """
 
     shape: tuple
@@ -37,7 +37,9 @@ class Pattern:
         indptr = np.zeros(shape[0] + 1, np.int64)
         np.cumsum(np.bincount(r, minlength=shape[0]), out=indptr[1:])
         idx_dtype = np.int32 if max(shape) < 2**31 - 1 and uniq.size < 2**31 - 1 else np.int64
-        return cls(tuple(shape), indptr.astype(idx_dtype), (uniq % shape[1]).astype(idx_dtype), slot.ravel())
+        # int32 positions where they fit: the slot list is the largest array of a pattern
+        return cls(tuple(shape), indptr.astype(idx_dtype), (uniq % shape[1]).astype(idx_dtype),
+                   slot.ravel().astype(idx_dtype))
 
     @property
     def nnz(self) -> int:
@@ -47,3 +49,73 @@ class Pattern:
         """csr array with the contributions ``values`` (n_contributions,) summed into place."""
         data = np.bincount(self.slot, weights=np.asarray(values, float).ravel(), minlength=self.nnz)
         return sp.csr_array((data, self.indices, self.indptr), shape=self.shape)
+
+
+@dataclass(frozen=True, eq=False)
+class BlockPattern:
+    """A :class:`Pattern` over several blocks of contributions, optionally restricted to the rows
+    one process owns (distributed runs: each rank assembles only its rows of a Jacobian).
+
+    Build it from every block's (row, col) lists in the global numbering; ``fill`` then takes each
+    block's values already restricted to the kept contributions (:meth:`take` restricts a block's
+    full value list). Without a restriction every contribution is kept and the pattern is the one
+    :meth:`Pattern.build` gives for the concatenated lists.
+
+    Attributes
+    ----------
+    pattern : Pattern (n_rows, n_cols) of the kept contributions (local rows, mapped columns)
+    keep : tuple, per block the (k_b,) int64 positions of its kept contributions, or None when
+        every contribution of the block is kept
+    """
+
+    pattern: Pattern
+    keep: tuple
+
+    @classmethod
+    def build(cls, blocks, shape, row_local: np.ndarray | None = None, col_map: np.ndarray | None = None,
+              n_rows: int | None = None) -> "BlockPattern":
+        """
+        Parameters
+        ----------
+        blocks : sequence of (rows, cols) integer arrays (any shape; raveled), global numbering
+        shape : (n_rows, n_cols) of the global matrix
+        row_local : (n_rows,) int, the local row of every global row, −1 for rows not kept; None:
+            every row, numbered as given
+        col_map : (n_cols,) int, the new number of every column (e.g. the distributed numbering);
+            None: unchanged
+        n_rows : rows of the restricted pattern (with ``row_local``)
+        """
+        R, C, keep = [], [], []
+        for r, c in blocks:
+            r = np.asarray(r, np.int64).ravel()
+            c = np.asarray(c, np.int64).ravel()
+            if row_local is None:
+                k = None
+            else:
+                lr = row_local[r]
+                k = np.flatnonzero(lr >= 0)
+                r = lr[k]
+                c = c[k]
+                if k.size == lr.size:
+                    k = None                    # the whole block: no index list to keep
+                elif lr.size < 2**31 - 1:
+                    k = k.astype(np.int32)
+            if col_map is not None:
+                c = col_map[c]
+            R.append(r)
+            C.append(c)
+            keep.append(k)
+        rows_out = shape[0] if row_local is None else int(n_rows)
+        pat = Pattern.build(np.concatenate(R) if R else np.zeros(0, np.int64),
+                            np.concatenate(C) if C else np.zeros(0, np.int64), (rows_out, shape[1]))
+        return cls(pat, tuple(keep))
+
+    def take(self, block: int, values: np.ndarray) -> np.ndarray:
+        """The kept entries of one block's full (raveled) value list."""
+        v = np.asarray(values, float).ravel()
+        k = self.keep[block]
+        return v if k is None else v[k]
+
+    def fill(self, values) -> sp.csr_array:
+        """csr array (n_rows, n_cols) from every block's kept values (a sequence, block order)."""
+        return self.pattern.fill(np.concatenate([np.asarray(v, float).ravel() for v in values]))

@@ -31,6 +31,7 @@ from ..assembly.flow import FlowAssembler, FlowSystem
 from ..core.errors import InputError
 from ..solvers.distributed import context, distribute, min_owner
 from ..solvers.linear import LinearSolver
+from ..solvers.timing import SPLIT
 
 
 def cubic_law(aperture: np.ndarray) -> np.ndarray:
@@ -262,7 +263,7 @@ class FlowModel:
         self.fracture_cells = self.assembler.fcells
         self.setup_seconds = {"validation": t1 - t0, "local_operators_and_pattern": time.perf_counter() - t1}
         self._cache = None
-        self._distribute()
+        self._distributed = False
 
     # -- distributed runs (solvers/distributed.py) ---------------------------------------------
     def dof_owner(self, part: np.ndarray) -> np.ndarray:
@@ -282,9 +283,11 @@ class FlowModel:
         return np.maximum(own, 0)
 
     def _distribute(self):
-        """Under mpiexec: the layout of the free unknowns of :meth:`_system`, given to the solver."""
-        if context() is None:
+        """Under mpiexec: the layout of the free unknowns of :meth:`_system`, given to the solver
+        (at the first solve: a flow model inside the coupled model never solves on its own)."""
+        if self._distributed or context() is None:
             return
+        self._distributed = True
         ids, _, _ = self._dirichlet(0.0)
         free = np.ones(self.assembler.dofs.n, bool)
         free[ids] = False
@@ -462,16 +465,19 @@ class FlowModel:
         return self._cache[1:]
 
     def _solve(self, t, dt, aperture, cell_rhs, frac_rhs) -> FlowSolution:
-        system, fidx, A_ff, A_fd, timings = self._system(dt, aperture)
-        timings = dict(timings)
-        t0 = time.perf_counter()
-        ids, vals, qflux = self._dirichlet(t)
-        asm = self.assembler
-        b = asm.rhs(system, cell_rhs, frac_rhs, qflux)
-        x = np.zeros(asm.dofs.n)
-        x[ids] = vals
+        self._distribute()
+        with SPLIT.timed("assembly"):
+            system, fidx, A_ff, A_fd, timings = self._system(dt, aperture)
+            timings = dict(timings)
+            t0 = time.perf_counter()
+            ids, vals, qflux = self._dirichlet(t)
+            asm = self.assembler
+            b = asm.rhs(system, cell_rhs, frac_rhs, qflux)
+            x = np.zeros(asm.dofs.n)
+            x[ids] = vals
         t1 = time.perf_counter()
-        x[fidx] = self.solver.solve(A_ff, b[fidx] - A_fd @ vals)
+        with SPLIT.timed("linear"):
+            x[fidx] = self.solver.solve(A_ff, b[fidx] - A_fd @ vals)
         t2 = time.perf_counter()
         sol = self._post(system, x, cell_rhs, t, aperture)
         timings.update(rhs=t1 - t0, solve=t2 - t1, recovery=time.perf_counter() - t2)

@@ -21,12 +21,13 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..assembly.elasticity import elasticity_matrix
-from ..assembly.pattern import Pattern
+from ..assembly.pattern import BlockPattern
 from ..core.errors import InputError
+from ..core.memory import trim_heap
 from ..discretisation import DisplacementSpace, Operators, QuadraticOperators, QuadraticSpace
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
-from ..solvers.distributed import distribute, min_owner
+from ..solvers.distributed import OwnedRows, RowBlock, local_rows, min_owner, owned_layout, register_layout
 from ..solvers.linear import LinearSolver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import LAWS, OPEN, SLIP, STICK, ContactLaw, linearise_contact
@@ -135,6 +136,16 @@ class MechanicsState:
     seconds: dict = field(default_factory=dict)
 
 
+def jacobian_pattern(blocks, n: int, layout) -> BlockPattern:
+    """The fixed pattern of an (n, n) Newton Jacobian from its blocks of (row, col) contributions:
+    every row serially; under mpiexec (``layout`` a DofLayout) this rank's rows, numbered from 0,
+    with the columns in the distributed numbering, the rows PETSc takes as they are."""
+    if layout is None:
+        return BlockPattern.build(blocks, (n, n))
+    return BlockPattern.build(blocks, (n, n), row_local=layout.local_index, col_map=layout.inv,
+                              n_rows=layout.n_local)
+
+
 def _side_points(space: DisplacementSpace) -> np.ndarray:
     """Evaluation point of every side: its node, or for a node with several sides (on Γ) the
     node nudged 1e-12 of the way towards one of the side's cells.
@@ -227,6 +238,11 @@ class ContactMechanics:
         self._face_means = {}          # traction boundaries: face-mean operators (order 2: face quadratures)
         self._setup_dirichlet()
         self._setup_contact()
+        # under mpiexec (solvers/distributed.py; None serially): the layout of the Newton unknowns,
+        # whose rows this rank assembles, and of all displacement dofs, whose rows of A it keeps
+        self.layout = owned_layout(mesh, self.dof_owner)
+        self.dof_layout = owned_layout(mesh, lambda part: np.repeat(self.slot_owner(part), d))
+        self.A = RowBlock.of(self.A, self.dof_layout)
         self._setup_pattern(J)
         self.solver = solver or LinearSolver("auto")
         backend = getattr(self.solver, "backend", None)
@@ -234,7 +250,9 @@ class ContactMechanics:
             self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8,
                                             petsc=backend == "block-petsc", options=self.solver.petsc_options)
         self.newton = newton or NewtonOptions(label="contact Newton")
-        distribute(self.solver, fm.mesh, self.dof_owner)                  # under mpiexec only
+        if self.layout is not None:
+            register_layout(self.solver, self.layout)
+        trim_heap()                 # the set-up's temporaries (core/memory.py)
         self.seconds_setup = time.perf_counter() - t0
         log.info("mechanics: order %d, %d displacement dofs (%d free), %d multipliers, %s bubbles; set up in %.2f s",
                  self.order, self.n_dofs, self.free.size, self.n_ff * d,
@@ -355,15 +373,34 @@ class ContactMechanics:
         gthr = np.broadcast_to(np.asarray(c.threshold, float), (self.n_ff,)).copy()
         self.law = ContactLaw(c.law, F, gthr, beta)
 
-    def _setup_pattern(self, J):
-        """All (row, col) contributions of the Newton Jacobian, restricted to free dofs, built once."""
+    def jacobian_blocks(self, J) -> tuple[list, list]:
+        """The (row, col) lists of the Newton Jacobian's mechanical blocks in the numbering of the
+        unknowns [free u, λ̃, …], and their values where they are fixed.
+
+        Blocks, in order: A (free rows and columns; on N ranks only this rank's rows, from the rows
+        of A it keeps), Bᵀ (u rows, λ̃ columns), C_u (contact rows, u columns: one d × d entry
+        per jump entry whose slot is free, selected by ``self._cu``'s mask), C_λ (d × d per face).
+
+        Parameters
+        ----------
+        J : coo (n_ff, n_slots), the scalar jump operator
+
+        Returns
+        -------
+        blocks : list of (rows, cols) int64 arrays
+        values : list, the fixed values of A (N/m) and Bᵀ β (N/m), then None, None (C_u and C_λ
+            change at every iterate)
+        """
         d, nf, nfree = self.dim, self.n_ff, self.free.size
-        A = self.A[self.free][:, self.free].tocoo()
+        A = local_rows(self.A).tocoo()
+        arow = A.row if self.dof_layout is None else self.dof_layout.owned[A.row]
+        fr, fc = self.free_index[arow], self.free_index[A.col]
+        ka = (fr >= 0) & (fc >= 0)
         Bt = self.Bv[:, self.free].T.tocoo()
         # Newton works on λ̃ = λ/β (a length, like u) with the contact rows multiplied by β: the
         # Jacobian then has blocks of one scale (~ μ h^{d-2}) instead of μ, |σ| and |σ|/β, which
         # would cost the direct solver ~8 digits
-        Bt.data = Bt.data * self.law.beta[Bt.col // d]
+        bt_vals = Bt.data * self.law.beta[Bt.col // d]
         # C_u: row (σ, i), col (slot a, j) for every jump entry (σ, a)
         rows = J.row.astype(np.int64)[:, None, None] * d + np.arange(d)[None, :, None]
         colsd = J.col.astype(np.int64)[:, None, None] * d + np.arange(d)[None, None, :]
@@ -373,11 +410,22 @@ class ContactMechanics:
         self._cu = (J.row, J.data, keep)
         lr = (np.arange(nf)[:, None, None] * d + np.arange(d)[None, :, None]) + 0 * np.arange(d)[None, None, :]
         lc = (np.arange(nf)[:, None, None] * d + np.arange(d)[None, None, :]) + 0 * np.arange(d)[None, :, None]
-        allr = np.concatenate([A.row, Bt.row, nfree + rows[keep], nfree + lr.ravel()])
-        allc = np.concatenate([A.col, nfree + Bt.col, fcol[keep], nfree + lc.ravel()])
-        n = nfree + nf * d
-        self.pattern = Pattern.build(allr, allc, (n, n))
-        self._fixed_vals = np.concatenate([A.data, Bt.data])
+        blocks = [(fr[ka], fc[ka]), (Bt.row, nfree + Bt.col), (nfree + rows[keep], fcol[keep]),
+                  (nfree + lr, nfree + lc)]
+        return blocks, [A.data[ka], bt_vals, None, None]
+
+    def release_assembly(self) -> None:
+        """Free the Jacobian's pattern and fixed values (the coupled model needs them for its
+        initial equilibrium only); the next :meth:`linearise` builds them again."""
+        self.pattern = self._fixed_vals = None
+
+    def _setup_pattern(self, J):
+        """All (row, col) contributions of the Newton Jacobian, restricted to free dofs, built once
+        (on N ranks: this rank's rows, distributed numbering)."""
+        n = self.free.size + self.n_ff * self.dim
+        blocks, values = self.jacobian_blocks(J)
+        self.pattern = jacobian_pattern(blocks, n, self.layout)
+        self._fixed_vals = np.concatenate([self.pattern.take(k, values[k]) for k in (0, 1)])
 
     # ---- loads ----------------------------------------------------------------------------
     def dirichlet_vector(self, t: float = 0.0) -> np.ndarray:
@@ -443,16 +491,21 @@ class ContactMechanics:
         q = (self.Jv @ u).reshape(nf, d)
         s = q if q_old is None else q - q_old
         C, dC_dlam, dC_dq, state = linearise_contact(self.law, lam, q, s, self.normal, self.face_area)
-        Ru = self.A @ u + self.Bv.T @ lam.ravel() - F
+        Au, Bl = self.A @ u, self.Bv.T @ lam.ravel()          # A: a RowBlock on N ranks (gathered)
+        Ru = Au + Bl - F
         Ru_f = Ru[self.free]
+        if self.pattern is None:
+            self._setup_pattern(self.ops.jump.tocoo())
         jrow, jval, keep = self._cu
         b = self.law.beta
+        pat = self.pattern
         cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
-        vals = np.concatenate([self._fixed_vals, cu, (dC_dlam * (b * b)[:, None, None]).ravel()])
-        Jac = self.pattern.fill(vals)
+        Jac = pat.fill([self._fixed_vals, pat.take(2, cu), pat.take(3, dC_dlam * (b * b)[:, None, None])])
+        if self.layout is not None:
+            Jac = OwnedRows(Jac, self.layout)
         # scales: the work-conjugate size of each block (energy-norm scaling)
         # (A u over all dofs includes the Dirichlet reactions, the load of a purely kinematic case)
-        su = max(np.linalg.norm(F), np.linalg.norm(self.A @ u), np.linalg.norm(self.Bv.T @ lam.ravel()), 1e-300)
+        su = max(np.linalg.norm(F), np.linalg.norm(Au), np.linalg.norm(Bl), 1e-300)
         sc = max(np.linalg.norm(self.face_area[:, None] * q), np.linalg.norm((self.face_area / self.law.beta)[:, None]
                                                                             * lam), 1e-300)
         norms = {"equilibrium": float(np.linalg.norm(Ru_f) / su)}

@@ -59,17 +59,18 @@ from typing import Mapping
 import numpy as np
 import scipy.sparse as sp
 
-from ..assembly.pattern import Pattern
+from ..assembly.pattern import BlockPattern
 from ..core.errors import InputError, RunError
+from ..core.memory import trim_heap
 from ..mesh import FracturedMesh
-from ..solvers.distributed import distribute
+from ..solvers.distributed import OwnedRows, RowBlock, local_rows, owned_layout, register_layout
 from ..solvers.linear import LinearSolver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from ..solvers.petsc import shared
 from .contact import OPEN, SLIP, STICK, linearise_contact
 from .energy import step_energy
 from .flow import FlowData, FlowModel, FlowSolution, _positive
-from .mechanics import ContactMechanics, MechanicsData
+from .mechanics import ContactMechanics, MechanicsData, jacobian_pattern
 
 log = logging.getLogger("polypore")
 
@@ -205,6 +206,7 @@ class Poromechanics:
         self._setup_stabilisation(pressure_stabilisation)
         self._setup_flow_dofs()
         self._setup_pattern()
+        trim_heap()                 # the set-up's temporaries (core/memory.py)
         self.seconds_setup = time.perf_counter() - t0
         log.info("poromechanics: %d free displacement dofs, %d multipliers, %d free pressures; set up in %.2f s",
                  self.mech.free.size, self.n_ff * self.dim, self.flow_free.size, self.seconds_setup)
@@ -230,9 +232,17 @@ class Poromechanics:
             rows += [r]
             cols += [c]
             vals += [v]
-        self.G = sp.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                              shape=(mech.n_dofs, self.n_flow))
-        self.GT = self.G.T.tocsr()
+        G = sp.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                         shape=(mech.n_dofs, self.n_flow))
+        # the constant parts of pressure_scale, from the whole G (before it is cut to rows)
+        a = mech.A.diagonal()[mech.free]
+        self._elastic_diag = float(np.mean(a))                     # (2μ + λ_L) h^{d−2}, N/m (Pa in 2D)
+        Gf = G[mech.free]
+        self._biot_diag = Gf.multiply(Gf).T @ (1.0 / a)             # diag(Gᵀ diag(A)⁻¹ G), m³/Pa (m²/Pa in 2D)
+        # under mpiexec each rank keeps its rows of G (displacement dofs) and Gᵀ (flow unknowns)
+        self.flow_layout = owned_layout(self.fm.mesh, lambda part: np.concatenate([self.flow.dof_owner(part), part]))
+        self.G = RowBlock.of(G, mech.dof_layout)
+        self.GT = RowBlock.of(G.T.tocsr(), self.flow_layout)
         self._nc = nc
 
     def _setup_stabilisation(self, delta):
@@ -262,10 +272,6 @@ class Poromechanics:
         self.stabilisation_pairs = pairs[keep]                               # (n_pairs, 2) cells (K, L)
         self.stabilisation_weights = w[keep]                                 # δ w_σ, m^d/Pa
         self._stab_pos = pos[keep]                                           # their (cell, face) entries
-        K, L = self.dofs.n + self.stabilisation_pairs.T
-        self._stab_rc = (np.concatenate([K, L, K, L]), np.concatenate([K, L, L, K]))
-        w = self.stabilisation_weights
-        self._stab_vals = np.concatenate([w, w, -w, -w])
 
     def stabilisation_matrix(self) -> sp.csr_array:
         """S_δ (n_flow, n_flow), m³/Pa: the pressure-jump stabilisation of the mass balance.
@@ -282,8 +288,19 @@ class Poromechanics:
         k_K = n_σ·K_K n_σ. The step adds S_δ(p^n − p^{n−1}, q) to the Δt-scaled mass balances
         (m³ per step).
         """
-        r, c = self._stab_rc
-        return sp.csr_array((self._stab_vals, (r, c)), shape=(self.n_flow, self.n_flow))
+        r, c = self._stab_rc()
+        return sp.csr_array((self._stab_vals(), (r, c)), shape=(self.n_flow, self.n_flow))
+
+    def _stab_rc(self) -> tuple[np.ndarray, np.ndarray]:
+        """(rows, cols) (4 n_pairs,) of S_δ's entries: (K, K), (L, L), (K, L), (L, K) per pair
+        (computed when needed: the model keeps only the pairs and weights)."""
+        K, L = self.dofs.n + self.stabilisation_pairs.T
+        return np.concatenate([K, L, K, L]), np.concatenate([K, L, L, K])
+
+    def _stab_vals(self) -> np.ndarray:
+        """(4 n_pairs,) S_δ's entries in the order of :meth:`_stab_rc`, m³/Pa."""
+        w = self.stabilisation_weights
+        return np.concatenate([w, w, -w, -w])
 
     def stabilisation_jumps(self, p: np.ndarray) -> np.ndarray:
         """(n_pairs,) p_K − p_L across the faces of S_δ (``stabilisation_pairs``) for a (n_flow,)
@@ -302,52 +319,62 @@ class Poromechanics:
         # pattern of the uncondensed flow matrix: fill once to fix its CSR structure; the step
         # matrix adds the stabilisation's cell–cell entries, so A_dt gets one structure for both
         # (step_context picks its free–free entries by position in A_dt.data)
+        # (on N ranks: this rank's rows of it, flow_layout)
         Af = self.asm.full_matrix(np.ones(self._nc), np.ones(self.n_ff), np.ones(self.n_ff), np.zeros(self.n_ff))
         r = np.repeat(np.arange(self.n_flow), np.diff(Af.indptr))
-        sr, sc = self._stab_rc
-        self._af_pattern = Pattern.build(np.concatenate([r, sr]), np.concatenate([Af.indices, sc]), Af.shape)
-        r = np.repeat(np.arange(self.n_flow), np.diff(self._af_pattern.indptr))
-        c = self._af_pattern.indices.astype(np.int64)
+        fl = self.flow_layout
+        self._af_pattern = BlockPattern.build([(r, Af.indices), self._stab_rc()], Af.shape,
+                                              row_local=None if fl is None else fl.local_index,
+                                              n_rows=None if fl is None else fl.n_local)
+        pat = self._af_pattern.pattern
+        r = np.repeat(np.arange(pat.shape[0]), np.diff(pat.indptr))
+        if fl is not None:
+            r = fl.owned[r]                                   # local rows → flow unknowns
+        c = pat.indices.astype(np.int64)
         self._af_keep = (self.flow_free_index[r] >= 0) & (self.flow_free_index[c] >= 0)
-        self._af_rc = (self.flow_free_index[r[self._af_keep]], self.flow_free_index[c[self._af_keep]])
+        it = np.int32 if self.n_flow < 2**31 - 1 else np.int64
+        keep = self._af_keep
+        self._af_rc = (self.flow_free_index[r[keep]].astype(it), self.flow_free_index[c[keep]].astype(it))
 
     def _setup_pattern(self):
-        """Every (row, col) contribution of the step Jacobian, restricted to unknowns, built once."""
+        """Every (row, col) contribution of the step Jacobian, restricted to unknowns, built once
+        (on N ranks: this rank's rows, distributed numbering, :func:`.mechanics.jacobian_pattern`)."""
         mech, d, nf = self.mech, self.dim, self.n_ff
         nfree = mech.free.size
         nl = nf * d
         npf = self.flow_free.size
-        beta = mech.law.beta
-        A = mech.A[mech.free][:, mech.free].tocoo()
-        Bt = mech.Bv[:, mech.free].T.tocoo()
-        J = mech.jump_scalar.tocoo()
-        rows = J.row.astype(np.int64)[:, None, None] * d + np.arange(d)[None, :, None]
-        colsd = J.col.astype(np.int64)[:, None, None] * d + np.arange(d)[None, None, :]
-        rows, colsd = np.broadcast_arrays(rows, colsd)
-        fcol = mech.free_index[colsd]
-        keep = fcol >= 0
-        self._cu = (J.row, J.data, keep)
-        lr = np.broadcast_to(np.arange(nf)[:, None, None] * d + np.arange(d)[None, :, None], (nf, d, d))
-        lc = np.broadcast_to(np.arange(nf)[:, None, None] * d + np.arange(d)[None, None, :], (nf, d, d))
-        Gc = self.G[mech.free][:, self.flow_free].tocoo()          # u rows × p columns
-        self._g_vals, self._g_cols = Gc.data, Gc.col
         po = nfree + nl                                              # offset of the pressures
+        n = po + npf
+        self.layout = owned_layout(self.fm.mesh, self.dof_owner)    # None serially
+        J = mech.jump_scalar.tocoo()
+        blocks, values = mech.jacobian_blocks(J)                     # A, Bᵀ, C_u, C_λ
+        self._cu = mech._cu
+        keep = self._cu[2]
+        # G: u rows × p columns (the rows of G this rank keeps), and p rows × u columns from the
+        # rows of Gᵀ it keeps: the same values, so that each rank has its rows of both blocks
+        G = local_rows(self.G).tocoo()
+        grow = G.row if mech.dof_layout is None else mech.dof_layout.owned[G.row]
+        gr, gc = mech.free_index[grow], self.flow_free_index[G.col]
+        kg = (gr >= 0) & (gc >= 0)
+        T = local_rows(self.GT).tocoo()
+        trow = T.row if self.flow_layout is None else self.flow_layout.owned[T.row]
+        tr, tc = self.flow_free_index[trow], mech.free_index[T.col]
+        kt = (tr >= 0) & (tc >= 0)
         ar, ac = self._af_rc
-        allr = np.concatenate([A.row, Bt.row, nfree + rows[keep], nfree + lr.ravel(), Gc.row, po + Gc.col,
-                               po + ar])
-        allc = np.concatenate([A.col, nfree + Bt.col, fcol[keep], nfree + lc.ravel(), po + Gc.col, Gc.row,
-                               po + ac])
+        blocks += [(gr[kg], po + gc[kg]), (po + tr[kt], tc[kt]), (po + ar, po + ac)]
         # dilatancy: ∂(|σ| tan ψ |[[u − u⁰]]_τ|)/∂u in the fracture-pressure rows, one entry per
         # (jump nonzero, component) whose row and column are unknowns
+        fcol = mech.free_index[J.col.astype(np.int64)[:, None] * d + np.arange(d)]       # (nnz, d)
         frow = self.flow_free_index[self.dofs.frac[J.row]] if nf else np.zeros(0, np.int64)
         dkeep = keep[:, 0, :] & (frow[:, None] >= 0)                  # (nnz, d): one row per face
         self._dil = (J.row, J.data, dkeep)
-        allr = np.concatenate([allr, po + np.broadcast_to(frow[:, None], dkeep.shape)[dkeep]])
-        allc = np.concatenate([allc, fcol[:, 0, :][dkeep]])
-        n = po + npf
-        self.pattern = Pattern.build(allr, allc, (n, n))
-        self._a_vals = A.data
-        self._bt_vals = Bt.data * beta[Bt.col // d] if Bt.nnz else Bt.data
+        blocks.append((po + np.broadcast_to(frow[:, None], dkeep.shape)[dkeep], fcol[dkeep]))
+        self.pattern = pat = jacobian_pattern(blocks, n, self.layout)
+        self._a_vals = pat.take(0, values[0])
+        self._bt_vals = pat.take(1, values[1])
+        it = np.int32 if n < 2**31 - 1 else np.int64
+        self._g_u = (pat.take(4, G.data[kg]), gc[kg].astype(it))      # values (m^d), p column
+        self._g_p = (pat.take(5, T.data[kt]), tr[kt].astype(it))      # values (m^d), p row
         self.n_unknowns = n
         self._setup_scaling()
         backend = getattr(self.solver, "backend", None)
@@ -361,7 +388,8 @@ class Poromechanics:
             self.solver = PetscBlockPoroSolver(nfree, d, nl, self.mech.condensation(),
                                                near_nullspace=self.mech.rigid_modes(),
                                                options=self.solver.petsc_options)
-        distribute(self.solver, self.fm.mesh, self.dof_owner)            # under mpiexec only
+        if self.layout is not None:
+            register_layout(self.solver, self.layout)
 
     def dof_owner(self, part: np.ndarray) -> np.ndarray:
         """(n_unknowns,) owner rank of every step unknown [free u, λ̃, free pressures] for the cell
@@ -371,12 +399,8 @@ class Poromechanics:
 
     # ---- scaling and step coefficients ----------------------------------------------------
     def _setup_scaling(self):
-        """The constant parts of :meth:`pressure_scale` and of the flow residual norm."""
-        mech, d = self.mech, self.dofs
-        a = mech.A.diagonal()[mech.free]
-        self._elastic_diag = float(np.mean(a))                     # (2μ + λ_L) h^{d−2}, N/m (Pa in 2D)
-        Gf = self.G[mech.free]
-        self._biot_diag = Gf.multiply(Gf).T @ (1.0 / a)             # diag(Gᵀ diag(A)⁻¹ G), m³/Pa (m²/Pa in 2D)
+        """The flow residual norm's parts (:meth:`_setup_coupling` has those of :meth:`pressure_scale`)."""
+        d = self.dofs
         self._abs_GT = abs(self.GT)
         # equation kind of each flow row that is an unknown: 0 cell mass balance, 1 face flux
         # continuity, 2 matrix–fracture exchange (traces), 3 fracture mass balance, 4 fracture-edge
@@ -403,7 +427,8 @@ class Poromechanics:
 
         Parameters
         ----------
-        A_dt : sparse (n_flow, n_flow) the step's flow matrix (:meth:`flow_step_system`), m³/Pa
+        A_dt : sparse (n_flow, n_flow) the step's flow matrix (:meth:`flow_step_system`; a RowBlock
+            on N ranks), m³/Pa
         """
         D = A_dt.diagonal() + self._biot_diag
         D = np.maximum(D, 1e-30 * max(float(D.max(initial=0.0)), 1e-300))
@@ -428,7 +453,8 @@ class Poromechanics:
         Returns
         -------
         A_dt : csr (n_flow, n_flow), Δt A_f(d_f^{n−1}) + S_δ with storage |K|/M and |σ| d_f^{n−1} c_f
-            and the pressure-jump stabilisation S_δ (:meth:`stabilisation_matrix`), m³/Pa
+            and the pressure-jump stabilisation S_δ (:meth:`stabilisation_matrix`), m³/Pa; on N
+            ranks a :class:`~polypore.solvers.distributed.RowBlock` of this rank's rows
         r_dt : (n_flow,) Δt × (sources + old storage − Neumann outflow) + S_δ p^{n−1}, m³ (coupling
             excluded)
         p_dir : (n_flow,) Dirichlet pressures at t on fixed dofs, 0 elsewhere, Pa
@@ -440,7 +466,10 @@ class Poromechanics:
         ex, fc = self.conductivities(old.aperture)
         Af = self.asm.full_matrix(s_cell, ex, fc, s_frac)
         # the stabilisation acts on the increment: S_δ p^n in the matrix, S_δ p^{n−1} on the right
-        A_dt = self._af_pattern.fill(np.concatenate([Af.data * dt, self._stab_vals]))
+        pat = self._af_pattern
+        A_dt = pat.fill([pat.take(0, Af.data * dt), pat.take(1, self._stab_vals())])
+        if self.flow_layout is not None:
+            A_dt = RowBlock(A_dt, self.flow_layout)
         ids, vals, qflux = self.flow._dirichlet(t)
         hm, hf = self.flow.sources(t)
         d = self.dofs
@@ -521,6 +550,11 @@ class Poromechanics:
             u, lam = mech._split(res.x, udir)
             state = mech.linearise(res.x, F, udir, None).active_set
             u = u.reshape(-1, d)
+            # the contact Jacobian's pattern, and the contact solver's PETSc matrices and AMG, are
+            # not needed by the steps
+            mech.release_assembly()
+            if mech.solver is not self.solver and hasattr(mech.solver, "release"):
+                mech.solver.release()
         else:
             u = np.asarray(mech.interpolate(u0, t0) if callable(u0) else u0, float).reshape(-1, d)
             lam = np.zeros((self.n_ff, d))
@@ -537,6 +571,7 @@ class Poromechanics:
         mech, d = self.mech, self.dim
         u = mech.dirichlet_vector(t0).reshape(-1, d)
         self.u_ref = u.copy()
+        mech.release_assembly()                 # no contact solve: the steps do not need it
         zero = np.zeros((self.n_ff, d))
         state = linearise_contact(mech.law, self.lam0, zero, zero, mech.normal, mech.face_area)[3]
         if self.n_ff:
@@ -576,13 +611,16 @@ class Poromechanics:
 
     def _linearise(self, x, ctx) -> Linearisation:
         mech, d, nf = self.mech, self.dim, self.n_ff
-        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, g_vals, af_vals, (abs_A, terms_old) = ctx
+        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, (g_u, g_p), af_vals, (abs_A, terms_old) = ctx
         u, lam, p = self._split(x, udir, p_dir, s)
         q = (mech.Jv @ u).reshape(nf, d)
         C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, q, q - q_old, mech.normal, mech.face_area)
         cs = self._coupling_sign
+        # on N ranks A, G, Gᵀ, A_dt and the |·| are RowBlocks: each product is this rank's rows and
+        # an Allgatherv, the serial values bit for bit (solvers/distributed.py)
         Gp = self.G @ p
-        Ru = mech.A @ u + mech.Bv.T @ lam.ravel() - cs * Gp - F
+        Au, Bl = mech.A @ u, mech.Bv.T @ lam.ravel()
+        Ru = Au + Bl - cs * Gp - F
         Gdu = self.GT @ (u - u_old)
         Ap = A_dt @ p
         Rf = Ap - r_dt + Gdu
@@ -601,12 +639,13 @@ class Poromechanics:
         b = mech.law.beta
         jrow, jval, keep = self._cu
         cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
-        vals = np.concatenate([self._a_vals, self._bt_vals, cu, (dC_dlam * (b * b)[:, None, None]).ravel(),
-                               -cs * g_vals, -g_vals, -af_vals, dil_vals])
-        Jac = self.pattern.fill(vals)
+        pat = self.pattern
+        Jac = pat.fill([self._a_vals, self._bt_vals, pat.take(2, cu), pat.take(3, dC_dlam * (b * b)[:, None, None]),
+                        -cs * g_u, -g_p, -af_vals, pat.take(7, dil_vals)])
+        if self.layout is not None:
+            Jac = OwnedRows(Jac, self.layout)
         free, ff = mech.free, self.flow_free
-        su = max(np.linalg.norm(F), np.linalg.norm(mech.A @ u), np.linalg.norm(mech.Bv.T @ lam.ravel()),
-                 np.linalg.norm(Gp), 1e-300)
+        su = max(np.linalg.norm(F), np.linalg.norm(Au), np.linalg.norm(Bl), np.linalg.norm(Gp), 1e-300)
         # flow: each kind of equation against the sum of the magnitudes of its own terms (docs/
         # poromechanics.md, "Residual scaling"); net sums such as ‖A_f p‖ cancel (b = 0, or the
         # exchange of a fracture at the matrix's pressure) and left Newton stuck at ratios 1e-7 … 1
@@ -647,8 +686,8 @@ class Poromechanics:
             # the AMG of the pressure Schur block needs the scaled image of a constant pressure
             self.solver.pressure_nullspace = 1.0 / sf
         ar, ac = self._af_rc
-        g_vals = self._g_vals * sf[self._g_cols]                       # columns scaled by s
-        af_vals = A_dt.data[self._af_keep] * sf[ar] * sf[ac]           # rows and columns scaled by s
+        g_vals = (self._g_u[0] * sf[self._g_u[1]], self._g_p[0] * sf[self._g_p[1]])   # pressures scaled by s
+        af_vals = local_rows(A_dt).data[self._af_keep] * sf[ar] * sf[ac]  # rows and columns scaled by s
         # magnitudes of the flow terms at t^{n−1} (the old storage, the old displacement's part of
         # the Biot term, Δt A_f p^{n−1}): the round-off of a Newton step from the old state is
         # ε |J| |x − x^{n−1}|, so they belong to the size of each row

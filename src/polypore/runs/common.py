@@ -1,8 +1,13 @@
-"""Small measures every run driver reports: peak memory and the unknowns of a contact problem."""
+"""Small measures every run driver reports: peak memory, the time split and the unknowns of a contact
+problem."""
 
 from __future__ import annotations
 
 import resource
+import time
+
+from ..solvers.distributed import context
+from ..solvers.timing import SPLIT, summary_split
 
 
 def peak_memory_mb() -> float:
@@ -13,3 +18,23 @@ def peak_memory_mb() -> float:
 def unknowns(problem) -> int:
     """Unknowns of a contact-mechanics problem: free displacement unknowns and the multipliers."""
     return int(problem.free.size + problem.n_ff * problem.dim)
+
+
+class RunClock:
+    """The wall and CPU clocks of one run, started with the run; :meth:`totals` is summary.json's
+    ``totals`` time split (docs/parallel.md, "Time split")."""
+
+    def __init__(self):
+        SPLIT.reset()
+        self.wall, self.cpu = time.perf_counter(), time.process_time()
+
+    def totals(self) -> dict:
+        """seconds, seconds_{assembly, linear, preconditioner, krylov, other}, their CPU seconds
+        under ``cpu`` and peak_memory_mb of this process; in a distributed run also ``ranks``, the
+        same for every rank (a collective call: every rank makes it at the same point)."""
+        out = summary_split(time.perf_counter() - self.wall, time.process_time() - self.cpu)
+        out["peak_memory_mb"] = peak_memory_mb()
+        ctx = context()
+        if ctx is not None and ctx.size > 1:
+            out["ranks"] = ctx.comm.allgather({k: v for k, v in out.items() if k != "ranks"})
+        return out

@@ -30,7 +30,7 @@ from ..models.fracture_geometry import arc_length
 from ..setup.casefile import CaseFile
 from ..setup.flow import FlowSetup, flow_setup
 from ..setup.meshing import build_fractured_mesh
-from .common import peak_memory_mb
+from .common import RunClock
 
 log = logging.getLogger("polypore")
 
@@ -202,7 +202,7 @@ def _plots_2d(stage: Path, case: CaseFile, model, setup: FlowSetup, sol, s):
 # -- entry points --------------------------------------------------------------------------------
 def run_flow(case: CaseFile, out: Path) -> dict:
     """Run a flow case (steady or transient) and write its files into ``out``; return the summary."""
-    t_start = time.perf_counter()
+    clock = RunClock()
     fm, setup, model, stage_seconds = _prepare(case)
     mesh, net = fm.mesh, fm.network
     s = arc_length(fm)
@@ -251,8 +251,7 @@ def run_flow(case: CaseFile, out: Path) -> dict:
             "steady": setup.steady,
             "steps": steps,
             "fluxes": bal,
-            "totals": {"seconds": time.perf_counter() - t_start, "peak_memory_mb": peak_memory_mb(),
-                       "seconds_by_stage": stage_seconds},
+            "totals": {**clock.totals(), "seconds_by_stage": stage_seconds},
         }
         if setup.exact is not None:
             summary["errors"] = flow_errors(model, sol, setup.exact, setup.on_gamma1)

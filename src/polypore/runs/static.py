@@ -27,7 +27,7 @@ from ..cases.reference import ReferenceSlip
 from ..setup.casefile import CaseFile
 from ..setup.mechanics import mechanics_setup
 from ..setup.meshing import build_fractured_mesh
-from .common import peak_memory_mb, unknowns
+from .common import RunClock, unknowns
 
 log = logging.getLogger("polypore")
 
@@ -57,7 +57,7 @@ def solve_static(case: CaseFile):
 
 def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
     """Run a static case and write its files into ``out``; return the summary."""
-    t0 = time.perf_counter()
+    clock = RunClock()
     problem, st, setup, errors, timings = solve_static(case)
     fm, mesh = problem.fm, problem.fm.mesh
     net = fm.network
@@ -95,8 +95,7 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
             "steps": [{"time": 0.0, "newton_iterations": st.newton_iterations, "residual": st.residual,
                        "open": int(np.sum(st.state == 0)), "stick": int(np.sum(st.state == 1)),
                        "slip": int(np.sum(st.state == 2)), "seconds": timings["solve"], "history": st.history}],
-            "totals": {"seconds": time.perf_counter() - t0, "peak_memory_mb": peak_memory_mb(),
-                       "seconds_by_stage": timings},
+            "totals": {**clock.totals(), "seconds_by_stage": timings},
         }
         if errors:
             summary["errors"] = errors

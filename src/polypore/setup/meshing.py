@@ -48,6 +48,7 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import InputError
+from ..core.memory import trim_heap
 from ..mesh import FracturedMesh, FractureSpec
 from ..mesh.mesh import with_boundary_parts, with_regions
 from .casefile import CaseFile
@@ -178,8 +179,11 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
 
     ctx = context()
     if ctx is not None and ctx.size > 1:
-        return ctx.bcast_call(_build_fractured_mesh, case)
-    return _build_fractured_mesh(case)
+        fm = ctx.bcast_call(_build_fractured_mesh, case)
+    else:
+        fm = _build_fractured_mesh(case)
+    trim_heap()                 # the mesh generator's and the broadcast's temporaries (core/memory.py)
+    return fm
 
 
 def _build_fractured_mesh(case: CaseFile) -> FracturedMesh:

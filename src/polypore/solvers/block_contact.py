@@ -48,6 +48,7 @@ import scipy.sparse.linalg as spla
 
 from ..core.errors import RunError
 from .linear import repeatable_random
+from .timing import SPLIT
 
 log = logging.getLogger("polypore")
 
@@ -131,10 +132,11 @@ class BlockContactSolver:
         t0 = time.perf_counter()
         J = sp.csr_matrix(J)
         n_u = self.n_u
-        A, Bt = J[:n_u, :n_u], J[:n_u, n_u:]
-        Cu, Cl = J[n_u:, :n_u], J[n_u:, n_u:]
-        Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
-        amg = _amg(S, self.near_nullspace)
+        with SPLIT.timed("preconditioner"):
+            A, Bt = J[:n_u, :n_u], J[:n_u, n_u:]
+            Cu, Cl = J[n_u:, :n_u], J[n_u:, n_u:]
+            Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
+            amg = _amg(S, self.near_nullspace)
 
         def apply(r):
             ru, rc = r[:n_u], r[n_u:]
@@ -142,7 +144,8 @@ class BlockContactSolver:
             xc = Cinv @ (rc - Cu_s @ xu)
             return np.concatenate([xu, xc])
 
-        x = _gmres(J, rhs, apply, self, target)
+        with SPLIT.timed("krylov"):
+            x = _gmres(J, rhs, apply, self, target)
         self.seconds += time.perf_counter() - t0
         log.debug("block contact solver: %d GMRES iterations, %.2f s", self.iterations[-1], time.perf_counter() - t0)
         return x
@@ -324,12 +327,13 @@ class BlockPoroSolver:
         J = sp.csr_matrix(J)
         nu, nl = self.n_u, self.n_l
         po = nu + nl
-        A, Bt, Gup = J[:nu, :nu], J[:nu, nu:po], J[:nu, po:]
-        Cu, Cl = J[nu:po, :nu], J[nu:po, nu:po]
-        Gpu, F = J[po:, :nu], J[po:, po:]
-        Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
-        self._p.update(F, Gpu, Gup, A.diagonal(), self.pressure_nullspace)
-        Mu, Mp = _amg(S, self.near_nullspace), self._p.apply
+        with SPLIT.timed("preconditioner"):
+            A, Bt, Gup = J[:nu, :nu], J[:nu, nu:po], J[:nu, po:]
+            Cu, Cl = J[nu:po, :nu], J[nu:po, nu:po]
+            Gpu, F = J[po:, :nu], J[po:, po:]
+            Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
+            self._p.update(F, Gpu, Gup, A.diagonal(), self.pressure_nullspace)
+            Mu, Mp = _amg(S, self.near_nullspace), self._p.apply
 
         def apply(r):
             ru, rl, rp = r[:nu], r[nu:po], r[po:]
@@ -338,7 +342,8 @@ class BlockPoroSolver:
             xl = Cinv @ (rl - Cu_s @ xu) if nl else rl
             return np.concatenate([xu, xl, xp])
 
-        x = _gmres(J, rhs, apply, self, target)
+        with SPLIT.timed("krylov"):
+            x = _gmres(J, rhs, apply, self, target)
         self.seconds += time.perf_counter() - t0
         log.debug("block poro solver: %d GMRES iterations, %.2f s", self.iterations[-1], time.perf_counter() - t0)
         return x

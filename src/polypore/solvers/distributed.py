@@ -1,19 +1,25 @@
 """Distributed runs under ``mpiexec`` (docs/parallel.md, "Distributed runs"): the MPI context, the
 cell partition and the dof layouts that the PETSc solvers use. No physics here.
 
-Design (this version):
+Design:
 
-* Every rank holds the whole mesh (built on rank 0 and broadcast) and the whole model; the Newton
-  iterate, residual and active sets are replicated, so every rank takes the same Newton decisions
-  without a reduction and the history on N ranks is the 1-rank history up to the linear solves.
+* Every rank holds the whole mesh (built on rank 0 and broadcast). The Newton iterate, the residual
+  and the active sets are replicated, so every rank takes the same Newton decisions without a
+  reduction and the history on N ranks is the 1-rank history up to the linear solves.
 * The mesh cells are partitioned with METIS (:func:`polypore.mesh.partition.partition_cells`).
   Every unknown of a linear system gets an owner rank from its cells (a model's ``dof_owner``):
   the lowest rank among the cells of a node, face or edge unknown; a fracture face's multipliers,
   bubbles and pressures the rank of its + side cell.
 * A :class:`DofLayout` renumbers the unknowns so that each rank's are one contiguous block in rank
   order (stable: the serial order inside a rank), the layout PETSc's MPIAIJ matrices and
-  vectors have. A rank passes PETSc only its rows (global columns), and the solution is gathered
-  on every rank after the solve (vectors are small next to matrices).
+  vectors have. Each rank assembles only its rows of the Jacobian (:class:`OwnedRows`, columns in
+  the distributed numbering), which go to PETSc as they are; the solution is gathered on every
+  rank after the solve (vectors are small next to matrices).
+* The model's operators on the replicated vectors (elasticity, coupling, flow matrices) are
+  :class:`RowBlock` s: each rank keeps the rows it owns, and a product is those rows' part
+  followed by an Allgatherv. Each entry is computed by one rank exactly as serially (the same row
+  in the same order), so residuals, norms and Newton's decisions are the serial ones, bit for bit,
+  and do not depend on MPI's reduction order.
 """
 
 from __future__ import annotations
@@ -24,6 +30,7 @@ import logging
 import os
 import pickle
 import types
+from dataclasses import dataclass
 
 import numpy as np
 import scipy.sparse as sp
@@ -168,10 +175,10 @@ class DofLayout:
 
     Attributes
     ----------
-    perm : (n,) int64, serial index of every distributed index (new → old)
-    inv : (n,) int64, distributed index of every serial index (old → new)
+    perm : (n,) int32 (int64 beyond 2³¹), serial index of every distributed index (new → old)
+    inv : (n,) int32 (int64 beyond 2³¹), distributed index of every serial index (old → new)
     counts : (size,) int64, unknowns per rank; start, end : this rank's rows [start, end)
-    owned : (end − start,) int64, serial indices of this rank's rows, in distributed order
+    owned : (end − start,) serial indices of this rank's rows, in distributed order
     """
 
     def __init__(self, owner: np.ndarray, comm):
@@ -181,9 +188,12 @@ class DofLayout:
             raise ValueError(f"owner ranks must lie in [0, {size}), got [{owner.min()}, {owner.max()}]")
         self.comm = comm
         self.n = owner.size
-        self.perm = np.argsort(owner, kind="stable").astype(np.int64)
-        self.inv = np.empty(self.n, np.int64)
-        self.inv[self.perm] = np.arange(self.n)
+        # int32 where it fits: a model keeps a layout per system (Newton unknowns, displacement
+        # dofs, flow unknowns), replicated on every rank
+        it = np.int32 if self.n < 2**31 - 1 else np.int64
+        self.perm = np.argsort(owner, kind="stable").astype(it)
+        self.inv = np.empty(self.n, it)
+        self.inv[self.perm] = np.arange(self.n, dtype=it)
         self.counts = np.bincount(owner, minlength=size).astype(np.int64)
         starts = np.concatenate([[0], np.cumsum(self.counts)])
         self.start, self.end = int(starts[rank]), int(starts[rank + 1])
@@ -217,16 +227,26 @@ class DofLayout:
     def gather(self, x_local: np.ndarray) -> np.ndarray:
         """The whole serial-numbered vector from every rank's part (n_local,) or (n_local, k):
         an Allgatherv, so every rank gets it."""
-        x_local = np.asarray(x_local, float)
-        if x_local.ndim == 2:
-            return np.stack([self.gather(x_local[:, j]) for j in range(x_local.shape[1])], axis=1)
+        x_local = np.ascontiguousarray(x_local, float)
+        k = 1 if x_local.ndim == 1 else x_local.shape[1]
         MPI = _mpi()
-        buf = np.empty(self.n, float)
-        self.comm.Allgatherv([np.ascontiguousarray(x_local), MPI.DOUBLE],
-                             [buf, (self.counts, self.displs), MPI.DOUBLE])
-        out = np.empty(self.n, float)
+        # rank r's rows are rows displs[r] … of the (n, k) result in row-major order: one message
+        buf = np.empty((self.n, k) if x_local.ndim == 2 else self.n, float)
+        self.comm.Allgatherv([x_local, MPI.DOUBLE], [buf, (self.counts * k, self.displs * k), MPI.DOUBLE])
+        out = np.empty_like(buf)
         out[self.perm] = buf
         return out
+
+    @property
+    def local_index(self) -> np.ndarray:
+        """(n,) local row (0 … n_local − 1) of every serial unknown this rank owns, −1 for the
+        others (the dtype of ``perm``)."""
+        li = getattr(self, "_local_index", None)
+        if li is None:
+            li = np.full(self.n, -1, self.perm.dtype)
+            li[self.owned] = np.arange(self.n_local)
+            self._local_index = li
+        return li
 
     def field(self, serial: np.ndarray) -> np.ndarray:
         """Sorted distributed indices of the unknowns ``serial`` (serial numbering) that this rank
@@ -238,6 +258,88 @@ class DofLayout:
         """Serial indices of :meth:`field` (same order): to pick this rank's rows of per-unknown
         data, such as near-null vectors, of that field."""
         return self.perm[self.field(serial)]
+
+
+@dataclass(eq=False)
+class OwnedRows:
+    """This rank's rows of the matrix of a distributed linear system (Newton's Jacobian on N ranks).
+
+    Attributes
+    ----------
+    rows : csr (n_local, n), rows ``layout.start`` … ``layout.end − 1`` of P A Pᵀ (P the layout's
+        permutation): the rows of the unknowns ``layout.owned``, columns in the distributed numbering;
+        None once a solver has taken them (:meth:`take`)
+    layout : DofLayout of the system
+    """
+
+    rows: sp.csr_matrix | None
+    layout: "DofLayout"
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (self.layout.n, self.layout.n)
+
+    def take(self) -> sp.csr_matrix:
+        """The rows, handed over: this object lets go of them, so that a solver that has copied
+        them into PETSc frees them before its Krylov iterations (Newton holds the Jacobian
+        until its solve returns). A second take is an error."""
+        if self.rows is None:
+            raise ValueError("the rows of this OwnedRows were taken by a solve already")
+        rows, self.rows = self.rows, None
+        return rows
+
+
+class RowBlock:
+    """A sparse operator (m, k) of which this rank holds the rows it owns; rows and columns keep the
+    serial numbering. ``op @ x`` for a replicated x (k,) or (k, j) is the whole replicated product
+    (m,) or (m, j): this rank's rows, then an Allgatherv. Every entry is one rank's row sum in the
+    serial order of the row, so the product is the serial one bit for bit.
+
+    Parameters
+    ----------
+    local : csr (n_local, k), the rows ``layout.owned`` of the operator
+    layout : DofLayout of the m rows
+    """
+
+    def __init__(self, local, layout: "DofLayout"):
+        self.local = sp.csr_matrix(local)
+        self.layout = layout
+        self.shape = (layout.n, self.local.shape[1])
+
+    @classmethod
+    def of(cls, A, layout: "DofLayout | None"):
+        """The owned rows of the serial matrix A (m, k) as a RowBlock; A itself when ``layout`` is None
+        (a serial run)."""
+        if layout is None:
+            return A
+        return cls(sp.csr_matrix(A)[layout.owned], layout)
+
+    def __matmul__(self, x):
+        return self.layout.gather(self.local @ np.asarray(x, float))
+
+    def diagonal(self) -> np.ndarray:
+        """(m,) the diagonal (m = k), replicated."""
+        L = self.local
+        own = self.layout.owned
+        d = np.zeros(len(own))
+        rows = np.repeat(np.arange(L.shape[0]), np.diff(L.indptr))
+        hit = L.indices == own[rows]
+        np.add.at(d, rows[hit], L.data[hit])
+        return self.layout.gather(d)
+
+    def __abs__(self) -> "RowBlock":
+        """|op| entry by entry; shares this operator's index arrays (only the values are new)."""
+        L = self.local
+        return RowBlock(sp.csr_matrix((np.abs(L.data), L.indices, L.indptr), shape=L.shape), self.layout)
+
+    @property
+    def nnz(self) -> int:
+        return self.local.nnz
+
+
+def local_rows(A):
+    """The rows this rank holds of an operator: ``A.local`` of a :class:`RowBlock`, else A (serial)."""
+    return A.local if isinstance(A, RowBlock) else A
 
 
 def _mpi():
@@ -275,14 +377,21 @@ def register_layout(solver, layout: DofLayout) -> None:
     layouts[layout.n] = layout
 
 
-def distribute(solver, mesh, owner_of) -> DofLayout | None:
-    """Under mpiexec: the layout of a model's unknowns, ``owner_of(part)`` (n,) ranks from the cell
-    ranks ``part`` (n_cells,) of ``mesh``'s partition, registered on ``solver``; None when serial."""
+def owned_layout(mesh, owner_of) -> DofLayout | None:
+    """Under mpiexec: the layout of unknowns whose owner ranks are ``owner_of(part)`` (n,), from the
+    cell ranks ``part`` (n_cells,) of ``mesh``'s partition; None when serial."""
     ctx = context()
     if ctx is None:
         return None
-    layout = DofLayout(owner_of(ctx.partition(mesh)), ctx.comm)
-    register_layout(solver, layout)
+    return DofLayout(owner_of(ctx.partition(mesh)), ctx.comm)
+
+
+def distribute(solver, mesh, owner_of) -> DofLayout | None:
+    """Under mpiexec: the layout of a model's unknowns (:func:`owned_layout`), registered on
+    ``solver``; None when serial."""
+    layout = owned_layout(mesh, owner_of)
+    if layout is not None:
+        register_layout(solver, layout)
     return layout
 
 

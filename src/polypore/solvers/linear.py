@@ -32,6 +32,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..core.errors import InputError, RunError
+from .timing import SPLIT
 
 log = logging.getLogger("polypore")
 
@@ -137,15 +138,23 @@ class LinearSolver:
             log.debug("distributed run: linear solver %r runs as %r", was, self.backend)
 
     def solve(self, A, b) -> np.ndarray:
+        """x (n,) or (n, k) with A x = b: A (n, n) sparse, or on N ranks this rank's rows
+        (:class:`~.distributed.OwnedRows`, the ``petsc`` backend only); b replicated."""
         t0 = time.perf_counter()
-        A = sp.csr_matrix(A)
+        from .distributed import OwnedRows
+
+        if not isinstance(A, OwnedRows):
+            A = sp.csr_matrix(A)
         b = np.asarray(b, float)
+        if isinstance(A, OwnedRows) and self.backend != "petsc":
+            raise InputError("solver.linear", f"{self.backend!r} cannot take a distributed matrix (docs/parallel.md)")
         if self.backend == "superlu":
             x = self._superlu(A, b)
         elif self.backend == "pardiso":
             import pypardiso
 
-            x = pypardiso.spsolve(A, b)
+            with SPLIT.timed("preconditioner"):           # factorisation and solve in one call
+                x = pypardiso.spsolve(A, b)
         elif self.backend == "amg":
             x = self._amg(A, b)
         elif self.backend == "petsc":
@@ -164,16 +173,18 @@ class LinearSolver:
         try:
             # a symmetric pattern orders better with minimum degree on A^T + A (4x less fill on
             # the 3D HFV face systems than COLAMD)
-            lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A" if self.symmetric else "COLAMD")
+            with SPLIT.timed("preconditioner"):           # the factorisation
+                lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A" if self.symmetric else "COLAMD")
         except RuntimeError as exc:
             raise RunError(f"the linear system is singular ({exc}): check the Dirichlet conditions and the data") from None
-        return lu.solve(b)
+        with SPLIT.timed("krylov"):                       # the triangular solves
+            return lu.solve(b)
 
     def _petsc(self, A, b):
-        from .distributed import layout_for
+        from .distributed import OwnedRows, layout_for
 
         n = A.shape[0]
-        layout = layout_for(self, n)            # None in a serial run
+        layout = A.layout if isinstance(A, OwnedRows) else layout_for(self, n)   # None in a serial run
         solvers = self.__dict__.setdefault("_petsc_solvers", {})
         solver = solvers.get(n)
         if solver is None:
@@ -188,7 +199,8 @@ class LinearSolver:
         if layout is None:
             x = solver.solve(A, b)
         else:
-            x = layout.gather(solver.solve(layout.rows(A), layout.local(b)))
+            rows = A.rows if isinstance(A, OwnedRows) else layout.rows(A)
+            x = layout.gather(solver.solve(rows, layout.local(b)))
         self.stats.iterations.extend(solver.iterations[k:])
         return x
 
@@ -196,7 +208,7 @@ class LinearSolver:
         import pyamg
 
         B = self.near_nullspace
-        with repeatable_random():
+        with repeatable_random(), SPLIT.timed("preconditioner"):
             ml = pyamg.smoothed_aggregation_solver(A, B=B, strength="evolution" if B is not None else "symmetric",
                                                    max_coarse=500)
         M = ml.aspreconditioner(cycle="V")
@@ -211,7 +223,8 @@ class LinearSolver:
             its[0] = 0
             krylov = spla.cg if self.symmetric else spla.gmres
             kw = {"restart": 100} if not self.symmetric else {}
-            x, info = krylov(A, cols[:, j], rtol=self.rtol, maxiter=self.maxiter, M=M, callback=cb, **kw)
+            with SPLIT.timed("krylov"):
+                x, info = krylov(A, cols[:, j], rtol=self.rtol, maxiter=self.maxiter, M=M, callback=cb, **kw)
             if info != 0:
                 raise RunError(f"the iterative solver did not reach rtol={self.rtol:g} in {self.maxiter} iterations")
             out[:, j] = x

@@ -33,7 +33,9 @@ from typing import Callable
 import numpy as np
 
 from ..core.errors import RunError
+from ..core.memory import trim_heap
 from .linear import LinearSolver
+from .timing import SPLIT
 
 log = logging.getLogger("polypore")
 
@@ -45,7 +47,8 @@ class Linearisation:
     Attributes
     ----------
     residual : (n,) residual vector F(x)
-    jacobian : (n, n) sparse generalised Jacobian
+    jacobian : (n, n) sparse generalised Jacobian; on N ranks this rank's rows of it
+        (:class:`~.distributed.OwnedRows`). Newton drops it after its linear solve.
     block_norms : dict name -> scaled residual norm (dimensionless: each block's residual
         against the size of its own terms, 1 = nothing solved yet)
     counts : dict label -> int (e.g. open / stick / slip faces), logged
@@ -213,7 +216,8 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
     inc = np.inf
     step = 1.0
     t0 = time.perf_counter()
-    lin = linearise(x)
+    with SPLIT.timed("assembly"):
+        lin = linearise(x)
     t_asm += time.perf_counter() - t0
     for it in range(options.max_iterations + 1):
         rnorm = max(lin.block_norms.values()) if lin.block_norms else 0.0
@@ -249,21 +253,28 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
                                f"(best {min(r):.3e}, now {rnorm:.3e}; active sets cycling) — smaller load or "
                                "time steps help")
         prev_active = None if lin.active_set is None else lin.active_set.copy()
+        trim_heap()                 # the assembly's temporaries, before the solver's allocations
         t0 = time.perf_counter()
-        if inexact and lin.row_scale is not None:
-            fnorm = float(np.linalg.norm(lin.row_scale * lin.residual))
-            eta = forcing_term(fnorm, prev_fnorm, prev_eta, it == 0 or same, options)
-            row["forcing"] = eta
-            dx = solver.solve(lin.jacobian, -lin.residual, target=KrylovTarget(lin.row_scale, eta))
-            prev_fnorm, prev_eta = fnorm, eta
-        else:
-            dx = solver.solve(lin.jacobian, -lin.residual)
+        with SPLIT.timed("linear"):
+            if inexact and lin.row_scale is not None:
+                fnorm = float(np.linalg.norm(lin.row_scale * lin.residual))
+                eta = forcing_term(fnorm, prev_fnorm, prev_eta, it == 0 or same, options)
+                row["forcing"] = eta
+                dx = solver.solve(lin.jacobian, -lin.residual, target=KrylovTarget(lin.row_scale, eta))
+                prev_fnorm, prev_eta = fnorm, eta
+            else:
+                dx = solver.solve(lin.jacobian, -lin.residual)
         t_lin += time.perf_counter() - t0
+        # the Jacobian is not needed any more: its memory (on N ranks this rank's rows) and the
+        # solve's temporaries go back to the system before the line search assembles the next one
+        lin.jacobian = None
+        trim_heap()
         merit0 = _merit(lin)
         step = 1.0
         t0 = time.perf_counter()
         while True:
-            trial = linearise(x + step * dx)
+            with SPLIT.timed("assembly"):
+                trial = linearise(x + step * dx)
             if it < options.free_steps or step <= options.min_step or \
                     _merit(trial) <= (1 - 1e-4 * step) * merit0 or not np.isfinite(merit0):
                 break

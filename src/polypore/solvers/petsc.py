@@ -30,6 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..core.errors import InputError, RunError
+from .timing import SPLIT
 
 log = logging.getLogger("polypore")
 
@@ -174,6 +175,12 @@ def interleaved_block_size(B, d: int) -> int:
     T = np.asarray(B)[:, :d].reshape(-1, d, d)
     ok = np.all(np.isclose(T, np.eye(d)[None]), axis=(1, 2)) | np.all(T == 0, axis=(1, 2))
     return d if bool(np.all(ok)) else 1
+
+
+def _mpi_max():
+    from mpi4py import MPI
+
+    return MPI.MAX
 
 
 # ---- options -----------------------------------------------------------------------------------
@@ -376,6 +383,7 @@ class KrylovDriver:
             self.stats.setups += 1
             self.stats.setup_seconds += time.perf_counter() - t0
             self.stats.setup_cpu += time.process_time() - c0
+            SPLIT.add("preconditioner", time.perf_counter() - t0, time.process_time() - c0)
             self.age = 0
             self.base_its = None
         else:
@@ -424,6 +432,7 @@ class KrylovDriver:
                 from None
         self.stats.krylov_seconds += time.perf_counter() - t0
         self.stats.krylov_cpu += time.process_time() - c0
+        SPLIT.add("krylov", time.perf_counter() - t0, time.process_time() - c0)
         its = ksp.getIterationNumber()
         reason = ksp.getConvergedReason()
         res = residual(x)
@@ -561,11 +570,14 @@ class PetscLinearSolver:
         A.sum_duplicates()
         A.sort_indices()
         key = (A.shape, A.nnz)
+        # the last pattern's arrays are kept by reference (a model refills one pattern: no copy)
         same = self._mat is not None and key == self._key[0] and np.array_equal(A.indptr, self._key[1]) \
             and np.array_equal(A.indices, self._key[2])
+        if comm.getSize() > 1:            # the matrix is collective: rebuilt on every rank or none
+            same = not comm.tompi4py().allreduce(not same, op=_mpi_max())
         self._mat = aij(A, comm, self.block_size, self._mat if same else None)
         if not same:
-            self._key = (key, A.indptr.copy(), A.indices.copy())
+            self._key = (key, A.indptr, A.indices)
             if self.near_nullspace is not None:
                 self._mat.setNearNullSpace(near_nullspace(self.near_nullspace, comm))
         self.driver.stats.convert_seconds += time.perf_counter() - t0

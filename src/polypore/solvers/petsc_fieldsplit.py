@@ -35,14 +35,17 @@ small meshes) have zero rows in the rigid-body modes (5.7 s instead of 0.05 s on
 complexity 17), docs/parallel.md. Every option can be overridden through ``options`` (without the
 solver's prefix, ``contact_`` or ``poro_`` by default) or on PETSc's command line with it.
 
-On N ranks (``mpiexec``, :mod:`.distributed`): every rank holds the whole J and computes Cl̂, Cû
-and Ŝ_p from it (they are row-local); a :class:`~.distributed.DofLayout` from the mesh partition
-gives each rank its rows of J and P for PETSc, the index sets of the splits are each rank's owned
-rows of a field, and the solution is gathered on every rank.
+On N ranks (``mpiexec``, :mod:`.distributed`): each rank has only its rows of J (the models assemble
+them, :class:`~.distributed.OwnedRows`; a whole J is cut with the registered
+:class:`~.distributed.DofLayout`) and builds its rows of P from them: Cl̂ and Cû are row-local (a
+fracture face's rows are one rank's), Ŝ_p's diagonal needs G_up,ji / A_jj of displacement rows j
+held by other ranks, which one Alltoallv brings (:func:`lumped_coupling`). The index sets of the
+splits are each rank's owned rows of a field, and the solution is gathered on every rank.
 """
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import time
 from collections.abc import Mapping
@@ -53,9 +56,10 @@ import scipy.sparse as sp
 
 from ..core.errors import InputError, RunError
 from .block_contact import ContactCondensation, _diag_blocks
-from .distributed import context, layout_for
+from .distributed import OwnedRows, _mpi, context, layout_for
 from .petsc import (AMG_KINDS, FIELD, KrylovDriver, PetscStats, ReusePolicy, aij, amg_defaults, interleaved_block_size,
                     krylov_defaults, near_nullspace, petsc, vec)
+from .timing import SPLIT
 
 log = logging.getLogger("polypore")
 
@@ -69,8 +73,15 @@ def modified_contact_blocks(cond: ContactCondensation, Cu, Cl):
     Cû = Cu − g (nᵀ Cu) face by face; see block_contact's module docstring.
     """
     nf, d = cond.normal.shape
+    return _modified(cond, _diag_blocks(Cl, nf, d), Cu)
+
+
+def _modified(cond: ContactCondensation, Cl_blocks: np.ndarray, Cu):
+    """Cl̂ (nf, d, d) and Cû (csr, Cu's shape) from the diagonal blocks of C_λ (nf, d, d) and the
+    contact rows' displacement part Cu (nf d, any columns): :func:`modified_contact_blocks`."""
+    nf, d = cond.normal.shape
     c, n = cond.scale, cond.normal
-    DP = np.eye(d)[None] - _diag_blocks(Cl, nf, d) / c[:, None, None]
+    DP = np.eye(d)[None] - Cl_blocks / c[:, None, None]
     DPn = np.einsum("fij,fj->fi", DP, n)
     g = DPn - np.einsum("fi,fi->f", n, DPn)[:, None] * n
     DPs = DP - np.einsum("fi,fj->fij", g, n)
@@ -86,36 +97,153 @@ def _keys(indptr, indices, ncols, row0=0):
     return rows * ncols + indices.astype(np.int64)
 
 
+class _RowBlocks:
+    """Where the fields lie in the rows a rank passes PETSc (all rows serially).
+
+    The rows are the owned unknowns in serial order, so the displacement, multiplier and pressure
+    rows are three consecutive ranges [0, nu), [nu, po), [po, n_rows); the columns are global
+    (the distributed numbering on N ranks, the serial one on one process).
+
+    Attributes
+    ----------
+    layout : DofLayout or None (serial)
+    row0 : global number of the first row
+    nu, po, n_rows : local row ranges (displacements [0, nu), multipliers [nu, po), pressures after)
+    n : global number of unknowns
+    faces : (nf_local,) fracture faces (serial numbers) whose multiplier rows these are, in row order
+    kind : (n,) int8, field of every global column: 0 u, 1 multiplier, 2 pressure
+    """
+
+    def __init__(self, lay, n: int, nu_global: int, po_global: int, d: int):
+        self.layout, self.n = lay, n
+        if lay is None:
+            self.row0, self.nu, self.po, self.n_rows = 0, nu_global, po_global, n
+            serial = None
+        else:
+            own = lay.owned
+            self.row0, self.n_rows = lay.start, lay.n_local
+            self.nu, self.po = (int(v) for v in np.searchsorted(own, [nu_global, po_global]))
+            serial = lay.perm
+        self.faces = (np.arange(nu_global, po_global, d) if lay is None else lay.owned[self.nu:self.po:d]) - nu_global
+        self.faces //= d
+        col = np.arange(n) if serial is None else serial
+        self.kind = ((col >= nu_global).astype(np.int8) + (col >= po_global)).astype(np.int8)
+
+
+def contact_rows(cond: ContactCondensation, R: sp.csr_matrix, blk: _RowBlocks) -> sp.csr_matrix | None:
+    """The contact rows of P: [Cû | Cl̂] (nl_local, n), columns as R's, from R's contact rows.
+
+    Each face's d rows and its own multiplier columns are this rank's (a face belongs to one rank),
+    so Cl̂ and Cû are computed from the rows at hand (:func:`modified_contact_blocks`)."""
+    a, b = blk.nu, blk.po
+    if b == a:
+        return None
+    d = cond.normal.shape[1]
+    nfl = (b - a) // d
+    M = R[a:b].tocoo()
+    f = M.row // d
+    loc = M.col.astype(np.int64) - (blk.row0 + a)          # position among this rank's multipliers
+    own = (loc >= 0) & (loc < b - a) & (loc // d == f)
+    Clb = np.zeros((nfl, d, d))
+    np.add.at(Clb, (f[own], M.row[own] % d, loc[own] % d), M.data[own])
+    isu = blk.kind[M.col] == 0
+    Cu = sp.csr_matrix((M.data[isu], (M.row[isu], M.col[isu])), shape=(b - a, blk.n))
+    sub = ContactCondensation(cond.scale[blk.faces], cond.normal[blk.faces], cond.rho)
+    Clhat, Cu_s = _modified(sub, Clb, Cu)
+    rl = (np.arange(nfl)[:, None, None] * d + np.arange(d)[None, :, None]) + 0 * np.arange(d)[None, None, :]
+    cl = blk.row0 + a + np.swapaxes(rl, 1, 2)
+    Cl = sp.csr_matrix((Clhat.ravel(), (rl.ravel(), cl.ravel())), shape=(b - a, blk.n))
+    return (Cu_s + Cl).tocsr()
+
+
+def lumped_coupling(R: sp.csr_matrix, blk: _RowBlocks) -> np.ndarray:
+    """(n_p_local,) Σ_j G_pu,ij G_up,ji / A_jj for this rank's pressure rows i (Ŝ_p = F − diag(·)).
+
+    Serially the product of J's blocks. On N ranks the displacement row j that holds G_up,ji and
+    A_jj may be another rank's: each rank sends (i, j, G_up,ji / A_jj) of its displacement rows to
+    the owner of the pressure i (one Alltoallv), which multiplies by its G_pu,ij.
+    """
+    nu, po, row0 = blk.nu, blk.po, blk.row0
+    lay = blk.layout
+    if lay is None:
+        A, Gup, Gpu = R[:nu, :nu], R[:nu, po:], R[po:, :nu]
+        return np.asarray((Gpu @ sp.diags(1.0 / A.diagonal())).multiply(Gup.T).sum(axis=1)).ravel()
+    U = R[:nu].tocoo()
+    diag = np.zeros(nu)
+    on = U.col == row0 + U.row
+    diag[U.row[on]] = U.data[on]
+    isp = blk.kind[U.col] == 2
+    gi, gj = U.col[isp].astype(np.int64), row0 + U.row[isp].astype(np.int64)   # (pressure, displacement)
+    w = U.data[isp] / diag[U.row[isp]]
+    ends = lay.displs + lay.counts
+    dest = np.searchsorted(ends, gi, side="right")
+    order = np.argsort(dest, kind="stable")
+    send = np.stack([gi[order].astype(float), gj[order].astype(float), w[order]], axis=1)  # < 2^53: exact
+    size = lay.comm.Get_size()
+    scount = np.bincount(dest, minlength=size).astype(np.int64)
+    rcount = np.asarray(lay.comm.alltoall(scount.tolist()), np.int64)
+    recv = np.empty((int(rcount.sum()), 3))
+    sd = np.concatenate([[0], np.cumsum(scount)[:-1]]) * 3
+    rd = np.concatenate([[0], np.cumsum(rcount)[:-1]]) * 3
+    MPI = _mpi()
+    lay.comm.Alltoallv([np.ascontiguousarray(send), (scount * 3, sd), MPI.DOUBLE], [recv, (rcount * 3, rd), MPI.DOUBLE])
+    P = R[po:].tocoo()
+    isu = blk.kind[P.col] == 0
+    keys = (P.row[isu].astype(np.int64)) * blk.n + P.col[isu]            # sorted: rows, then columns
+    vals = P.data[isu]
+    ri = recv[:, 0].astype(np.int64) - row0 - po
+    k = ri * blk.n + recv[:, 1].astype(np.int64)
+    out = np.zeros(blk.n_rows - po)
+    if not len(keys):
+        return out
+    pos = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
+    hit = keys[pos] == k                       # G_up,ji without a G_pu,ij adds nothing
+    np.add.at(out, ri[hit], vals[pos[hit]] * recv[hit, 2])
+    return out
+
+
 class _PreconditionerPattern:
     """Fixed CSR pattern of P ⊇ pattern(J) ∪ whole d×d blocks in the contact rows (each face's rows
-    get the union of their columns) ∪ the pressure diagonal; maps J's and the modified blocks'
-    values into it."""
+    get the union of their columns) ∪ the pressure diagonal, for the rows R a rank passes (all rows
+    serially); maps J's and the modified blocks' values into it. Indices are kept as int32 where
+    they fit: P's pattern is the largest array of the preconditioner's set-up."""
 
-    def __init__(self, J: sp.csr_matrix, nu: int, nl: int, d: int, po: int):
-        n = J.shape[0]
-        S = sp.csr_matrix((np.ones(J.nnz), J.indices, J.indptr), shape=J.shape)
-        if nl:
+    def __init__(self, R: sp.csr_matrix, blk: _RowBlocks, d: int):
+        nu, po, nr, n, row0 = blk.nu, blk.po, blk.n_rows, blk.n, blk.row0
+        S = sp.csr_matrix((np.ones(R.nnz), R.indices, R.indptr), shape=R.shape)
+        if po > nu:
+            nl = po - nu
             face = sp.kron(sp.identity(nl // d, format="csr"), np.ones((d, d)), format="csr")
             rows = sp.csr_matrix(S[nu:po])
             rows.data[:] = 1.0
-            S = sp.vstack([S[:nu], face @ rows + sp.hstack([sp.csr_matrix((nl, nu)), face,
-                                                            sp.csr_matrix((nl, n - po))]), S[po:]]).tocsr()
-        S = (S + sp.diags(np.r_[np.zeros(po), np.ones(n - po)])).tocsr()
+            own = sp.csr_matrix((np.ones(face.nnz), face.indices + row0 + nu, face.indptr), shape=(nl, n))
+            S = sp.vstack([S[:nu], face @ rows + own, S[po:]]).tocsr()
+        pr = np.arange(po, nr)
+        S = (S + sp.csr_matrix((np.ones(pr.size), (pr, row0 + pr)), shape=S.shape)).tocsr()
         S.sum_duplicates()
         S.sort_indices()
-        self.indptr, self.indices, self.shape = S.indptr, S.indices, S.shape
+        it = np.int32 if n < 2**31 - 1 and S.nnz < 2**31 - 1 else np.int64
         keys = _keys(S.indptr, S.indices, n)
-        self.pos_J = np.searchsorted(keys, _keys(J.indptr, J.indices, n))
+        if S.nnz == R.nnz:
+            # J's pattern has them all already (C5: the face blocks and the pressure diagonal are
+            # in it): P shares J's index arrays, its values start as J's
+            self.indptr, self.indices, self.pos_J = R.indptr, R.indices, None
+        else:
+            self.indptr, self.indices = S.indptr.astype(it), S.indices.astype(it)
+            self.pos_J = np.searchsorted(keys, _keys(R.indptr, R.indices, n)).astype(it)
+        self.shape = S.shape
         self.a, self.b = int(S.indptr[nu]), int(S.indptr[po])
-        self.keys_l = keys[self.a:self.b]
-        diag = np.arange(po, n, dtype=np.int64)
-        self.pos_pdiag = np.searchsorted(keys, diag * n + diag)
-        self.nu, self.po, self.n = nu, po, n
+        self.keys_l = keys[self.a:self.b].copy()       # a view would keep all of P's keys alive
+        self.pos_pdiag = np.searchsorted(keys, pr * n + row0 + pr).astype(it)
+        self.nu, self.n = nu, n
 
-    def values(self, J: sp.csr_matrix, Ml: sp.csr_matrix | None, pdiag_shift) -> np.ndarray:
-        """P's data: J's values, the contact rows from Ml (nl × n, csr), the pressure diagonal − shift."""
-        out = np.zeros(len(self.indices))
-        out[self.pos_J] = J.data
+    def values(self, R: sp.csr_matrix, Ml: sp.csr_matrix | None, pdiag_shift) -> np.ndarray:
+        """P's data: R's values, the contact rows from Ml (nl × n, csr), the pressure diagonal − shift."""
+        if self.pos_J is None:
+            out = np.array(R.data, float)
+        else:
+            out = np.zeros(len(self.indices))
+            out[self.pos_J] = R.data
         if Ml is not None:
             out[self.a:self.b] = 0.0
             k = _keys(Ml.indptr, Ml.indices, self.n, self.nu)
@@ -136,8 +264,20 @@ def _canonical(J) -> sp.csr_matrix:
     return J
 
 
+def _same_buffer(a: np.ndarray, b: np.ndarray) -> bool:
+    """Whether two arrays are views of one buffer (the model's fixed pattern, refilled)."""
+    return (a.shape == b.shape and a.dtype == b.dtype
+            and a.__array_interface__["data"][0] == b.__array_interface__["data"][0])
+
+
 class _FieldSplitBase:
-    """Shared machinery: PETSc matrices updated in place, the driver, the true-residual check."""
+    """Shared machinery: PETSc matrices updated in place, the driver, the true-residual check.
+
+    A Jacobian arrives whole (serial numbering; on N ranks each rank cuts out its rows with the
+    registered layout) or as this rank's rows (:class:`~.distributed.OwnedRows`, what the models
+    assemble on N ranks). Everything after works on the rows at hand: P (Cl̂, Cû, Ŝ_p) is built
+    for them only and they go to PETSc as they are.
+    """
 
     def _init_common(self, prefix, defaults, options, reuse):
         if self.amg not in AMG_KINDS:
@@ -150,7 +290,7 @@ class _FieldSplitBase:
         self.bs_u = interleaved_block_size(self.near_nullspace, self.d)
         self.driver = KrylovDriver(prefix, defaults, options, reuse, self.rtol, self.maxiter, self.accept_rtol,
                                    configure=self._configure)
-        self._Jm = self._Pm = self._pat = self._key = None
+        self._Jm = self._Pm = self._pat = self._key = self._blk = None
         self._nsp_u = None
 
     @property
@@ -165,22 +305,50 @@ class _FieldSplitBase:
     def iterations(self, value):
         self.driver.iterations = value
 
-    def _matrices(self, J, Ml, shift, nu, nl, po):
-        """Update (or create, for a new pattern of J) the PETSc J and P; True if the pattern is new."""
-        t0 = time.perf_counter()
-        key = (J.shape, J.nnz)
-        new = self._key is None or key != self._key[0] or not (np.array_equal(J.indptr, self._key[1])
-                                                               and np.array_equal(J.indices, self._key[2]))
+    def _rows_of(self, J, nu: int, po: int):
+        """(R, blocks): the rows this rank passes PETSc (csr, canonical; all rows serially) and where
+        the fields lie in them (:class:`_RowBlocks`, rebuilt when the layout changes)."""
+        if isinstance(J, OwnedRows):
+            lay = J.layout
+            R = _canonical(J.take())
+        else:
+            J = _canonical(J)
+            lay = layout_for(self, J.shape[0])
+            R = J if lay is None else lay.rows(J)
+        n = lay.n if lay is not None else R.shape[0]
+        if self._blk is None or self._blk.layout is not lay or self._blk.n != n:
+            self._blk = _RowBlocks(lay, n, nu, po, self.d)
+        self._lay = lay
+        return R, self._blk
+
+    def _pattern_changed(self, R) -> bool:
+        """Whether R's pattern differs from the last solve's (on N ranks: on any rank). The arrays of
+        the last pattern are kept by reference only: a model's fixed pattern passes the same buffer
+        every time, so nothing is copied."""
+        old = self._key
+        same = old is not None and old[0] == R.shape and (
+            (_same_buffer(old[1], R.indptr) and _same_buffer(old[2], R.indices))
+            or (np.array_equal(old[1], R.indptr) and np.array_equal(old[2], R.indices)))
+        changed = not same
+        if self._lay is not None:
+            changed = bool(self._lay.comm.allreduce(int(changed), op=_mpi().MAX))
+        if changed:
+            self._key = (R.shape, R.indptr, R.indices)
+        return changed
+
+    def _matrices(self, R, Ml, shift, blk, new):
+        """Update (or create, for a new pattern) the PETSc J and P from this rank's rows R."""
         if new:
-            self._key = (key, J.indptr.copy(), J.indices.copy())
-            self._pat = _PreconditionerPattern(J, nu, nl, self.d, po)
+            with SPLIT.timed("preconditioner"):
+                self._pat = _PreconditionerPattern(R, blk, self.d)
             self._Jm = self._Pm = None
-        Pcsr = self._pat.matrix(self._pat.values(J, Ml, shift))
-        lay = self._lay = layout_for(self, J.shape[0])
-        self._Jm = aij(J if lay is None else lay.rows(J), mat=self._Jm)
-        self._Pm = aij(Pcsr if lay is None else lay.rows(Pcsr), mat=self._Pm)
+        t0 = time.perf_counter()
+        self._Jm = aij(R, mat=self._Jm)
+        with SPLIT.timed("preconditioner"):
+            Pdata = self._pat.values(R, Ml, shift)
+            self._Pm = aij(self._pat.matrix(Pdata), mat=self._Pm)
+            del Pdata
         self.driver.stats.convert_seconds += time.perf_counter() - t0
-        return new
 
     def _forcing(self, target):
         """Newton's forcing term (a KrylovTarget, or None: ``rtol``) as the KSP's rtol of this solve.
@@ -196,16 +364,19 @@ class _FieldSplitBase:
         self.driver.defaults["ksp_rtol"] = repr(rtol)         # read by set-ups (setFromOptions)
         self.driver.ksp.setTolerances(rtol=rtol)              # and by a reused preconditioner's KSP
 
-    def _run(self, J, rhs, Ml, shift, nu, nl, po, new_step: bool = False, target=None):
-        new = self._matrices(J, Ml, shift, nu, nl, po)
-        self._sizes = (nu, nl, po, J.shape[0])
+    def _run(self, blk, rhs, new, new_step: bool = False, target=None):
+        """The Krylov solve once :meth:`_matrices` has put J and P into PETSc (the caller has let
+        go of its rows by then: they are not needed during the iterations)."""
+        n = blk.n
+        nu, po = self.n_u, self._po(n)                      # the fields in the serial numbering
+        self._sizes = (nu, po - nu, po, n)
         if new:
             self._nsp_u = None if self.near_nullspace is None else near_nullspace(self._rows(self.near_nullspace,
                                                                                                 np.arange(nu)))
         self.driver.operators(self._Jm, self._Pm, changed_pattern=new)
         self._forcing(target)
         if new:
-            self._build_pc(nu, nl, po, J.shape[0])
+            self._build_pc(nu, po - nu, po, n)
         self._new_step = new_step
         lay = self._lay
         b = vec(rhs if lay is None else lay.local(rhs))
@@ -223,6 +394,16 @@ class _FieldSplitBase:
 
         self.driver.solve(b, x, residual, rebuild=new_step)
         return x.getArray().copy() if lay is None else lay.gather(x.getArray())
+
+    def release(self) -> None:
+        """Free the PETSc matrices, the KSP and P's pattern (a solver that is done, e.g. the initial
+        equilibrium's); the next solve builds them again."""
+        self.driver.destroy()
+        for m in (self._Jm, self._Pm):
+            if m is not None:
+                m.destroy()
+        self._Jm = self._Pm = self._pat = self._key = self._blk = None
+        self._nsp_u = None
 
     def _rows(self, data, serial):
         """This rank's rows of per-unknown ``data`` indexed by the serial unknowns ``serial`` (in the
@@ -327,21 +508,20 @@ class PetscBlockContactSolver(_FieldSplitBase):
             S.setBlockSizes(self.bs_u, self.bs_u)
         S.setNearNullSpace(self._nsp_u)
 
+    def _po(self, n: int) -> int:
+        return n                                           # [u, l]: the multipliers fill the rest
+
     def solve(self, J, rhs, target=None) -> np.ndarray:
-        """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
+        """x with J x ≈ rhs: J (n, n) sparse or this rank's rows (OwnedRows), rhs (n,) replicated;
+        ``target`` a KrylovTarget or None (rtol)."""
         t0 = time.perf_counter()
-        J = _canonical(J)
-        nu = self.n_u
-        nl = J.shape[0] - nu
-        Ml = None
-        if nl:
-            Clhat, Cu_s = modified_contact_blocks(self.condensation, J[nu:, :nu], J[nu:, nu:])
-            nf, d = Clhat.shape[:2]
-            Cl = sp.csr_matrix((Clhat.reshape(nf, -1).ravel(),
-                                np.tile(np.arange(d), nf * d) + np.repeat(np.arange(nf) * d, d * d),
-                                np.arange(0, nf * d * d + 1, d)), shape=(nl, nl))
-            Ml = sp.hstack([Cu_s, Cl]).tocsr()
-        x = self._run(J, rhs, Ml, None, nu, nl, nu + nl, target=target)
+        R, blk = self._rows_of(J, self.n_u, J.shape[0])
+        new = self._pattern_changed(R)
+        with SPLIT.timed("preconditioner"):
+            Ml = contact_rows(self.condensation, R, blk)
+        self._matrices(R, Ml, None, blk, new)
+        del R, Ml                   # in PETSc now; OwnedRows.take() left no other reference
+        x = self._run(blk, rhs, new, target=target)
         self.seconds += time.perf_counter() - t0
         log.debug("PETSc block contact solver: %d GMRES iterations, %.2f s", self.iterations[-1],
                   time.perf_counter() - t0)
@@ -459,28 +639,33 @@ class PetscBlockPoroSolver(_FieldSplitBase):
         if self._new_step:
             self.pressure_builds += 1
 
+    def _po(self, n: int) -> int:
+        return self.n_u + self.n_l
+
     def solve(self, J, rhs, target=None) -> np.ndarray:
-        """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
+        """x with J x ≈ rhs: J (n, n) sparse or this rank's rows (OwnedRows), rhs (n,) replicated;
+        ``target`` a KrylovTarget or None (rtol)."""
         t0 = time.perf_counter()
-        J = _canonical(J)
         nu, nl = self.n_u, self.n_l
-        po = nu + nl
-        A, Gup = J[:nu, :nu], J[:nu, po:]
-        Gpu, F = J[po:, :nu], J[po:, po:]
-        fkey = (F.shape, F.nnz)
-        new_step = self._fkey is None or self._fkey[0] != fkey or not np.array_equal(self._fkey[1], F.data)
-        if new_step:
-            self._lump = np.asarray((Gpu @ sp.diags(1.0 / A.diagonal())).multiply(Gup.T).sum(axis=1)).ravel()
-            self._fkey = (fkey, F.data.copy())
-        Ml = None
-        if nl:
-            Clhat, Cu_s = modified_contact_blocks(self.condensation, J[nu:po, :nu], J[nu:po, nu:po])
-            nf, d = Clhat.shape[:2]
-            Cl = sp.csr_matrix((Clhat.reshape(nf, -1).ravel(),
-                                np.tile(np.arange(d), nf * d) + np.repeat(np.arange(nf) * d, d * d),
-                                np.arange(0, nf * d * d + 1, d)), shape=(nl, nl))
-            Ml = sp.hstack([Cu_s, Cl, sp.csr_matrix((nl, J.shape[0] - po))]).tocsr()
-        x = self._run(J, rhs, Ml, self._lump, nu, nl, po, new_step, target)
+        R, blk = self._rows_of(J, nu, nu + nl)
+        new = self._pattern_changed(R)
+        with SPLIT.timed("preconditioner"):
+            # a new time step when F (the pressure rows' pressure columns) changed: a digest of its
+            # values instead of a copy
+            a = int(R.indptr[blk.po])
+            fv = R.data[a:][blk.kind[R.indices[a:]] == 2]
+            fkey = (fv.size, hashlib.blake2b(fv.tobytes(), digest_size=16).digest())
+            del fv
+            new_step = self._fkey != fkey
+            if blk.layout is not None:
+                new_step = bool(blk.layout.comm.allreduce(int(new_step), op=_mpi().MAX))
+            if new_step:
+                self._lump = lumped_coupling(R, blk)
+                self._fkey = fkey
+            Ml = contact_rows(self.condensation, R, blk) if nl else None
+        self._matrices(R, Ml, self._lump, blk, new)
+        del R, Ml                   # in PETSc now; OwnedRows.take() left no other reference
+        x = self._run(blk, rhs, new, new_step, target)
         self.seconds += time.perf_counter() - t0
         log.debug("PETSc block poro solver: %d GMRES iterations, %.2f s", self.iterations[-1],
                   time.perf_counter() - t0)
