@@ -119,3 +119,18 @@ def test_emerald_fault_slivers_are_gone():
     for k, f in info.faults.items():                               # each fault keeps its surface
         assert A[f].sum() == pytest.approx(A0[raw_info.faults[k]].sum(), rel=1e-2)
     assert abs(mesh.volume - raw.volume) < 1e-4 * raw.volume
+
+
+def test_snap_is_a_case_key():
+    """``mesh.snap`` reaches the processor: Emerald's north fault has 109 faces snapped (the
+    default 0.2) and 134 with the grid's corners kept (0); out-of-range values name the key."""
+    from polypore.core.errors import InputError
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import build_fractured_mesh
+
+    faces = {s: build_fractured_mesh(load_case("emerald-injection", [f"mesh.snap={s}"])).network.n_faces
+             for s in (0, 0.2)}
+    assert faces[0.2] < faces[0]
+    assert build_fractured_mesh(load_case("emerald-injection")).network.n_faces == faces[0.2]
+    with pytest.raises(InputError, match=r"^mesh.snap: must be in \[0, 0.5\]"):
+        load_case("emerald-injection", ["mesh.snap=0.7"])

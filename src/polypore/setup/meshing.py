@@ -352,7 +352,7 @@ def _cornerpoint_mesh(spec, t0: float) -> FracturedMesh:
 
     m = spec.mesh
     grid = _cornerpoint_grid(spec)
-    mesh, info = process_grid(grid, nonplanar=m.nonplanar, regions=m.region_keyword)
+    mesh, info = process_grid(grid, nonplanar=m.nonplanar, regions=m.region_keyword, snap=m.snap)
     log.info("%s grid %s: %d active cells -> %d cells, %d faces; faults %s (%.2f s)", m.generator,
              "×".join(map(str, grid.dims)), info.n_active, mesh.n_cells, mesh.n_faces,
              {k: int(v.size) for k, v in info.faults.items()}, time.perf_counter() - t0)

@@ -23,9 +23,9 @@ GENERATOR_KEYS = {
     "voronoi": _BOX | {"size"},
     "agglomerated": _BOX | {"size", "fracture_size", "grading", "rounds"},
     "file": {"file"},
-    "grdecl": {"file", "nonplanar", "region_keyword"},
+    "grdecl": {"file", "nonplanar", "region_keyword", "snap"},
     "cornerpoint": {"cells", "extent", "top", "dip", "faults", "pinchout", "inactive", "seed", "nonplanar",
-                    "region_keyword"},
+                    "region_keyword", "snap"},
 }
 Coordinates = vector((2, 3), "coordinates (m)")
 
@@ -83,6 +83,10 @@ class Mesh(Table):
                               "the case file)")
     nonplanar: choice(*NONPLANAR) = Field("centre", description="grdecl, cornerpoint: warped faces split "
                                           "around a centre node, along a diagonal, or kept")
+    snap: number(ge=0, le=0.5) = Field(0.2, description="grdecl, cornerpoint: corners of neighbouring columns "
+                                       "closer on a pillar than snap × the thinnest touching cell's thickness are "
+                                       "merged at their mean depth, so that fault faces are not slivers (0: the "
+                                       "grid's corners exactly; docs/cornerpoint.md, 'Sliver fault faces')")
     region_keyword: Text | None = Field(None, description="grdecl, cornerpoint: integer cell keyword (e.g. "
                                         "FACIES) whose values v make the regions KEYWORD_v")
     extent: vector(3, "lengths (m)") | None = Field(None, description="cornerpoint: (Lx, Ly, H), horizontal "
