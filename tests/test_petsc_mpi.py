@@ -40,12 +40,18 @@ SCRIPT = textwrap.dedent("""
 """)
 
 
-def test_two_rank_solve_equals_scipy(tmp_path):
-    pytest.importorskip("petsc4py.PETSc")
-    pytest.importorskip("mpi4py")
+def _mpiexec(*modules: str) -> str:
+    """mpiexec's path; the test is skipped without petsc4py, mpi4py, ``modules`` or mpiexec."""
+    for m in ("petsc4py.PETSc", "mpi4py", *modules):
+        pytest.importorskip(m)
     mpiexec = shutil.which("mpiexec")
     if mpiexec is None:
         pytest.skip("no mpiexec (Open MPI's openmpi-bin)")
+    return mpiexec
+
+
+def test_two_rank_solve_equals_scipy(tmp_path):
+    mpiexec = _mpiexec()
     script = tmp_path / "two_ranks.py"
     script.write_text(SCRIPT.format(tests=os.path.dirname(__file__)))
     env = {**os.environ, "OMP_NUM_THREADS": "1"}
@@ -130,12 +136,7 @@ def test_each_rank_assembles_exactly_its_rows_of_the_serial_system(tmp_path):
     Jacobian, the rows of the two ranks make the whole matrix, and the gathered residual, block norms
     and row weights equal the serial ones bit for bit. The Ŝ_p coupling diagonal, whose
     displacement rows lie on other ranks, equals the serial one to round-off."""
-    pytest.importorskip("petsc4py.PETSc")
-    pytest.importorskip("mpi4py")
-    pytest.importorskip("pymetis")
-    mpiexec = shutil.which("mpiexec")
-    if mpiexec is None:
-        pytest.skip("no mpiexec (Open MPI's openmpi-bin)")
+    mpiexec = _mpiexec("pymetis")
     script = tmp_path / "assembly.py"
     script.write_text(ASSEMBLY)
     env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": os.pathsep.join(
