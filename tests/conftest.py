@@ -140,6 +140,15 @@ def sheared_mechanics(fm, ramp: float, two_sided: bool = False):
                          contact=ContactSpec("coulomb", 0.5), two_sided=two_sided)
 
 
+def case(tmp_path, text, *sets, name="c.toml"):
+    """The case file ``text`` written to ``tmp_path / name`` and loaded with the ``--set`` overrides ``sets``."""
+    from polypore.setup.casefile import load_case
+
+    p = tmp_path / name
+    p.write_text(text)
+    return load_case(str(p), sets)
+
+
 # a generated 6x4x3 corner-point grid with two faults along i (tests/test_cornerpoint_*.py)
 CORNERPOINT_MESH = """
 [mesh]

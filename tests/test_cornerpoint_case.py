@@ -8,12 +8,11 @@ import json
 import numpy as np
 import pytest
 
-from conftest import CORNERPOINT_MESH
+from conftest import CORNERPOINT_MESH, case
 
 from polypore.cli import main
 from polypore.core.errors import InputError
 from polypore.mesh.cornerpoint import MILLIDARCY, FaultSpec, generate_grid, write_grdecl
-from polypore.setup.casefile import load_case
 from polypore.setup.flow import flow_setup, well_cells
 from polypore.setup.meshing import build_fractured_mesh, cornerpoint_of
 
@@ -36,12 +35,6 @@ mass_rate = 4.0
 end = 10.0
 step = 10.0
 """
-
-
-def case(tmp_path, text, *sets, name="c.toml"):
-    p = tmp_path / name
-    p.write_text(text)
-    return load_case(str(p), sets)
 
 
 def test_cornerpoint_generator_boundaries_and_fault_selection(tmp_path):

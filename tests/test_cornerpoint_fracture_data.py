@@ -4,10 +4,9 @@ values on the faces of that fault; faults not named keep the global ones."""
 
 import numpy as np
 import pytest
-from conftest import CORNERPOINT_MESH
+from conftest import CORNERPOINT_MESH, case
 
 from polypore.core.errors import InputError
-from polypore.setup.casefile import load_case
 from polypore.setup.flow import flow_setup
 from polypore.setup.mechanics import mechanics_setup
 from polypore.setup.meshing import build_fractured_mesh
@@ -39,12 +38,6 @@ pressure = 0.0
 end = 10.0
 step = 10.0
 """
-
-
-def case(tmp_path, text, *sets, name="c.toml"):
-    p = tmp_path / name
-    p.write_text(text)
-    return load_case(str(p), sets)
 
 
 FAULTS = """
