@@ -1,6 +1,11 @@
 """C5 (``dfm-3d``) runs for a list of mesh sizes and bubble options, each under ``/usr/bin/time -v``.
 
     .venv/bin/python benchmarks/c5_runs.py [--sizes 0.047 0.0332] [--bubbles one-sided two-sided] [--threads 1]
+    .venv-mpi/bin/python benchmarks/c5_runs.py --ranks 2 --linear block-petsc --sizes 0.0332 --bubbles one-sided
+
+With ``--ranks N`` (N > 1) the run is ``mpiexec -n N`` of the same command (docs/parallel.md; the
+PETSc venv); the directory name gets ``-nN``, summary.json's ``totals.ranks`` holds every rank's
+time split and peak memory.
 
 Run directory ``<out-root>/size<size>-<bubbles>-<linear>`` (default out-root benchmarks/out/c5),
 log ``<out-root>/size<size>-<bubbles>-<linear>.log`` (stdout and stderr as the run goes), and after
@@ -36,13 +41,14 @@ def main() -> int:
     ap.add_argument("--extra", metavar="KEY=VALUE", action="append", default=[], help="further --set (repeatable)")
     ap.add_argument("--case", default="dfm-3d")
     ap.add_argument("--force", action="store_true", help="rerun configurations that have a summary.json")
+    ap.add_argument("--ranks", type=int, default=1, help="MPI ranks (mpiexec -n; default 1: no mpiexec)")
     args = ap.parse_args()
     root = Path(args.out_root)
     env = {"OMP_NUM_THREADS": str(args.threads), "MKL_NUM_THREADS": str(args.threads)}
     failed = 0
     for size in args.sizes:
         for bubbles in args.bubbles:
-            name = run_dir_name(size, bubbles, args.linear)
+            name = run_dir_name(size, bubbles, args.linear) + (f"-n{args.ranks}" if args.ranks > 1 else "")
             out = root / name
             if (out / "summary.json").exists() and not args.force:
                 print(f"{name}: skipped (summary.json exists; --force reruns)", flush=True)
@@ -50,6 +56,8 @@ def main() -> int:
             sets = [f"mesh.size={size:g}", f"mechanics.bubbles={bubbles}", f"solver.linear={args.linear}", *args.extra]
             cmd = [sys.executable, "-m", "polypore", "run", args.case, "--out", str(out), "--force"]
             cmd += [a for s in sets for a in ("--set", s)]
+            if args.ranks > 1:
+                cmd = ["mpiexec", "--allow-run-as-root", "-n", str(args.ranks), *cmd]
             print(f"{name}: running (log {root / (name + '.log')})", flush=True)
             r = timed_run(cmd, log=root / f"{name}.log", env=env)
             out.mkdir(parents=True, exist_ok=True)
