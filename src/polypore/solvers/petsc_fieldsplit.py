@@ -57,8 +57,8 @@ import scipy.sparse as sp
 from ..core.errors import InputError, RunError
 from .block_contact import ContactCondensation, _diag_blocks
 from .distributed import OwnedRows, _mpi, context, layout_for
-from .petsc import (AMG_KINDS, FIELD, KrylovDriver, PetscStats, ReusePolicy, aij, amg_defaults, interleaved_block_size,
-                    krylov_defaults, near_nullspace, petsc, vec)
+from .petsc import (AMG_KINDS, FIELD, KrylovDriver, PetscStats, ReusePolicy, aij, amg_defaults, collect_garbage,
+                    interleaved_block_size, krylov_defaults, near_nullspace, petsc, vec)
 from .timing import SPLIT
 
 log = logging.getLogger("polypore")
@@ -385,15 +385,18 @@ class _FieldSplitBase:
         bn = b.norm()
         if bn == 0.0:
             self.driver.iterations.append(0)
-            return np.zeros(len(rhs))
+            out = np.zeros(len(rhs))
+        else:
+            def residual(xv):
+                self._Jm.mult(xv, r)
+                r.aypx(-1.0, b)
+                return r.norm() / bn
 
-        def residual(xv):
-            self._Jm.mult(xv, r)
-            r.aypx(-1.0, b)
-            return r.norm() / bn
-
-        self.driver.solve(b, x, residual, rebuild=new_step)
-        return x.getArray().copy() if lay is None else lay.gather(x.getArray())
+            self.driver.solve(b, x, residual, rebuild=new_step)
+            out = x.getArray().copy() if lay is None else lay.gather(x.getArray())
+        for v in (b, x, r):         # collective: not left to Python's garbage (petsc.collect_garbage)
+            v.destroy()
+        return out
 
     def release(self) -> None:
         """Free the PETSc matrices, the KSP and P's pattern (a solver that is done, e.g. the initial
@@ -404,6 +407,7 @@ class _FieldSplitBase:
                 m.destroy()
         self._Jm = self._Pm = self._pat = self._key = self._blk = None
         self._nsp_u = None
+        collect_garbage()
 
     def _rows(self, data, serial):
         """This rank's rows of per-unknown ``data`` indexed by the serial unknowns ``serial`` (in the
