@@ -160,6 +160,26 @@ def test_forcing_takes_fewer_krylov_iterations_and_repeats_itself():
     assert np.abs(st_ew.u - st_fixed.u).max() <= 1e-7 * np.abs(st_fixed.u).max()
 
 
+def test_first_solve_of_a_step_is_exact_only_when_the_step_is_expected_to_be_linear():
+    """After a step whose active set moved (several Newton iterations) the first Krylov solve of the
+    next step gets forcing_max, not θ tol/‖F‖ (an exact solve the moving active set would waste);
+    the first step, and a step after a one-iteration step, solve their first iteration exactly."""
+    model, st = _poro("block-amg", "eisenstat-walker")
+    need = model.newton.forcing_margin * model.newton.tol
+    firsts, iters = [], []
+    for k in range(3):
+        st, info = model.step(st, 2.0, 2.0 * (k + 1), energy=False)
+        assert info.residual <= model.newton.tol
+        firsts.append(info.history[0]["forcing"])
+        iters.append(info.iterations)
+    assert iters[0] > 1 and iters[1] > 1, iters
+    assert firsts[0] < model.newton.forcing_max and firsts[0] <= need / 1e-3    # the first step: exact
+    assert firsts[1] == firsts[2] == model.newton.forcing_max                      # after a moving step
+    model._last_newton = 1                                                          # after a settled step
+    _, info = model.step(st, 2.0, 8.0, energy=False)
+    assert info.history[0]["forcing"] < model.newton.forcing_max
+
+
 def test_case_file_forcing_keys():
     from polypore.core.errors import InputError
     from polypore.setup.casefile import load_case

@@ -202,6 +202,7 @@ class Poromechanics:
         self.dofs = self.asm.dofs
         self.n_flow = self.dofs.n + fm.mesh.n_cells
         self._coupling_sign = 1.0   # −1 only in tests: a deliberately wrong Biot sign the energy check must catch
+        self._last_newton: int | None = None    # Newton iterations of the last step (the first solve's forcing)
         self._setup_coupling()
         self._setup_stabilisation(pressure_stabilisation)
         self._setup_flow_dofs()
@@ -724,7 +725,13 @@ class Poromechanics:
                     out = max(out, np.linalg.norm(dx[a:b]) / max(np.linalg.norm(x[a:b] + dx[a:b]), 1e-300))
             return float(out)
 
-        res = semismooth_newton(lambda x: self._linearise(x, ctx), x0, self.solver, incr, self.newton, verbose)
+        # an exact first solve only when this step is expected to be linear: the first step, or one
+        # after a step that converged in one iteration (its active set had settled); after a step
+        # whose active set moved it is as loose as the others (solvers/newton.py, forcing terms)
+        first_tight = self._last_newton is None or self._last_newton <= 1
+        res = semismooth_newton(lambda x: self._linearise(x, ctx), x0, self.solver, incr, self.newton, verbose,
+                                first_tight=first_tight)
+        self._last_newton = res.iterations
         u, lam, p = self._split(res.x, udir, p_dir, s)
         final = self._linearise(res.x, ctx)
         u = u.reshape(-1, d)
