@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Callable, Sequence
 
 import numpy as np
@@ -222,6 +222,10 @@ class ContactMechanics:
         mu, lam = np.broadcast_to(data.mu, (mesh.n_cells,)), np.broadcast_to(data.lam, (mesh.n_cells,))
         self.mu, self.lam = mu, lam
         self.A = elasticity_matrix(self.ops, mu, lam, data.stabilisation)
+        if self.ops.stab is not None:
+            # the stabilisation rows serve A only (the largest operator: one row per cell node),
+            # so they are not kept for the rest of the run
+            self.ops = replace(self.ops, stab=None, stab_cell=None)
         self.n_dofs = self.space.n_dofs
         g = mesh.geometry
         self.face_area = g.face_area[net.faces]

@@ -733,12 +733,11 @@ class Poromechanics:
                                 first_tight=first_tight)
         self._last_newton = res.iterations
         u, lam, p = self._split(res.x, udir, p_dir, s)
-        final = self._linearise(res.x, ctx)
         u = u.reshape(-1, d)
         sflux = self.stabilisation_weights * self.stabilisation_jumps(p - old.p) / dt
-        new = PoroState(t, u, lam, p, self.aperture_of(u), np.asarray(final.active_set, np.int8), old.aperture,
+        new = PoroState(t, u, lam, p, self.aperture_of(u), np.asarray(res.active_set, np.int8), old.aperture,
                         sflux)
-        c = final.counts
+        c = res.counts
         info = StepInfo(res.iterations, res.residual, c.get("open", 0), c.get("stick", 0), c.get("slip", 0),
                         res.history, {"setup": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear})
         info.linear_iterations = [int(k) for k in getattr(self.solver, "iterations", [])[k0:]]

@@ -137,6 +137,7 @@ class NewtonResult:
     history: list
     seconds_linear: float
     seconds_assembly: float
+    active_set: np.ndarray | None = None      # the contact states at x (the last linearisation's)
 
 
 def _merit(lin: Linearisation) -> float:
@@ -248,11 +249,11 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
         if not np.all(np.isfinite(lin.residual)):
             raise RunError(f"{options.label}: the residual became NaN/Inf at iteration {it}")
         if rnorm <= options.tol and (inc <= options.increment_tol or exact or it == 0 and rnorm == 0.0):
-            return NewtonResult(x, it, rnorm, lin.counts, history, t_lin, t_asm)
+            return NewtonResult(x, it, rnorm, lin.counts, history, t_lin, t_asm, lin.active_set)
         if same and inc <= 1e-2 * options.increment_tol and rnorm <= options.floor_factor * options.tol:
             log.info("%s: accepted at the round-off floor (residual %.2e, increment %.1e, active set fixed)",
                      options.label, rnorm, inc)
-            return NewtonResult(x, it, rnorm, lin.counts, history, t_lin, t_asm)
+            return NewtonResult(x, it, rnorm, lin.counts, history, t_lin, t_asm, lin.active_set)
         if it == options.max_iterations:
             break
         k = options.stall_iterations
