@@ -22,9 +22,10 @@ active set equals the previous iterate's (the step is expected to be the last: f
 set the residual is affine), solve to θ tol/‖F_k‖, θ = ``forcing_margin``, so that the new
 residual is below tol. A linear problem thus still converges in one Newton iteration, and only
 iterations that change the active set are solved loosely. A first iteration that is not tight
-gets ``forcing_max``: a time loop passes ``first_tight`` only after a step that converged in one
-iteration, because an exact first solve is wasted when the active set then moves (C5 at 46k
-cells: 56 of a step's ~140 GMRES iterations in the first half of the run).
+gets ``forcing_max``: the poromechanics time loop passes ``first_tight`` for its first step and
+after a step that converged in one iteration, because an exact first solve is wasted when the
+active set then moves (C5 at 46k cells: 56 of a step's ~140 GMRES iterations in the first half of
+the run).
 """
 
 from __future__ import annotations
