@@ -233,6 +233,7 @@ def main() -> int:
         for r in json.loads(Path(args.json).read_text())["runs"]:
             if r["name"] not in names:
                 r["contact_states"] = {float(t): v for t, v in r["contact_states"].items()}
+                r["label"] = f"{cells_label(r['cells'])} {r['bubbles']}"     # suffixes are given below
                 runs.append(r)
     if not runs:
         print("no finished run found", file=sys.stderr)
