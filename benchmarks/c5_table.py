@@ -7,10 +7,11 @@ Reads the run directories given (else every subdirectory of ``--out-root``); a d
 summary.json (run in progress or failed) is skipped with a message. With ``--keep`` the runs of
 the existing ``--json`` file that are not read again stay in the table (the date column says when
 each ran). Writes a Markdown table per
-configuration (Newton and GMRES iterations, step cuts, wall time, peak memory, time shares) and
-the contact states (open / stick / slip faces per fracture) at the output times (T/2 and T for
-C5) read from fractures.csv, the Newton / GMRES iterations of every step side by side, ``c5_newton_per_step.png`` and, where GMRES iterations are recorded
-(``solver.linear = block-amg``), ``c5_gmres_per_newton.png`` in ``--plots-dir``, and a JSON file
+configuration (Newton and GMRES iterations, step cuts, ranks, wall time, peak memory, time
+shares), the contact states (open / stick / slip faces per fracture) at the output times (T/2 and
+T for C5) read from fractures.csv, and the Newton / GMRES iterations of every step side by side;
+``c5_newton_per_step.png`` and, where GMRES iterations are recorded (the block solvers),
+``c5_gmres_per_newton.png`` in ``--plots-dir``, and a JSON file
 with every per-step number. Configurations are named from each run's case.toml (``mesh.size``,
 ``mechanics.bubbles``, ``solver.linear``), else from the directory name.
 """
@@ -146,8 +147,8 @@ def markdown(runs: list[dict], plots: list[Path], md_path: Path) -> str:
             f"| {r['label']} | {fmt(r['size'], 'g')} | {r['cells']} | {r['unknowns']} | {r['bubbles']} | {r['linear']} | "
             f"{r['n_steps']} | {r['newton_total']} | {fmt(r['newton_mean'], '.2f')} | {fmt(r['newton_max'])} | "
             f"{r['cuts']} | {fmt(r['gmres_total'])} | {fmt(r['gmres_per_newton'], '.1f')} | {fmt(r['threads'])} | "
-            f"{r.get('ranks', 1)} | {r['wall_seconds']:.1f} | {r['peak_memory_mb']:.0f} | {sh['assembly']:.0f} % | {sh['linear']:.0f} % | "
-            f"{sh['other']:.0f} % | {r['energy_violations']} | {(r.get('date') or '–')[:10]} |")
+            f"{r.get('ranks', 1)} | {r['wall_seconds']:.1f} | {r['peak_memory_mb']:.0f} | {sh['assembly']:.0f} % | "
+            f"{sh['linear']:.0f} % | {sh['other']:.0f} % | {r['energy_violations']} | {(r.get('date') or '–')[:10]} |")
     lines += [""] + [f"![{p.stem}]({os.path.relpath(p, md_path.parent)})" for p in plots] + [""]
     fractures = sorted({f for r in runs for states in r["contact_states"].values() for f in states})
     lines += ["## Contact states at the output times", "",

@@ -407,7 +407,7 @@ class _FieldSplitBase:
                 m.destroy()
         self._Jm = self._Pm = self._pat = self._key = self._blk = None
         self._nsp_u = None
-        collect_garbage()
+        collect_garbage(self.driver.comm)
 
     def _rows(self, data, serial):
         """This rank's rows of per-unknown ``data`` indexed by the serial unknowns ``serial`` (in the
