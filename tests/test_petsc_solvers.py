@@ -187,7 +187,8 @@ def test_setup_reuse_is_counted():
     assert np.linalg.norm(C @ x - b) <= 1e-9 * np.linalg.norm(b)
 
 
-def test_block_contact_solver_matches_block_contact():
+@pytest.mark.parametrize("structure", ["condensed", "fieldsplit"])
+def test_block_contact_solver_matches_block_contact(structure):
     _petsc()
     from polypore.solvers.petsc_fieldsplit import PetscBlockContactSolver
 
@@ -197,29 +198,67 @@ def test_block_contact_solver_matches_block_contact():
     K = sp.csr_matrix(J[:po, :po])
     rhs = np.asarray(r[:po])
     ref = spla.spsolve(K.tocsc(), rhs)
-    s = PetscBlockContactSolver(nu, d, cond, near_nullspace=B, rtol=1e-10)
+    options = {"pc_type": "fieldsplit"} if structure == "fieldsplit" else None
+    s = PetscBlockContactSolver(nu, d, cond, near_nullspace=B, rtol=1e-10, options=options)
+    assert s.structure == structure
     x = s.solve(K, rhs)
     assert np.linalg.norm(K @ x - rhs) <= 1e-9 * np.linalg.norm(rhs)
     assert np.linalg.norm(x - ref) <= 1e-6 * np.linalg.norm(ref)
     pc = s.driver.ksp.getPC()
-    assert pc.getType() == "fieldsplit"
-    ksp_l, ksp_s = pc.getFieldSplitSubKSP()
-    assert ksp_l.getPC().getType() == "pbjacobi" and ksp_s.getPC().getType() == "hypre"
-    assert ksp_s.getOperators()[1].getNearNullSpace() is not None
+    if structure == "fieldsplit":
+        assert pc.getType() == "fieldsplit"
+        ksp_l, ksp_s = pc.getFieldSplitSubKSP()
+        assert ksp_l.getPC().getType() == "pbjacobi" and ksp_s.getPC().getType() == "hypre"
+        assert ksp_s.getOperators()[1].getNearNullSpace() is not None
+    else:
+        assert pc.getType() == "python"
+        ku = s._cpc.ku
+        assert ku.getPC().getType() == "hypre" and ku.getOptionsPrefix() == "contact_fieldsplit_u_"
+        assert ku.getOperators()[1].getNearNullSpace() is not None
+        assert s._cpc.kp is None
     # the same preconditioner as BlockContactSolver's up to the AMG: similar GMRES counts
     ref_solver = BlockContactSolver(nu, d, cond, near_nullspace=B, rtol=1e-10)
     ref_solver.solve(K, rhs)
     assert s.iterations[-1] <= 2 * ref_solver.iterations[-1] + 5
 
 
+def test_condensed_preconditioner_applies_the_fieldsplit_one():
+    """The condensed PC (polypore's Schur blocks, two AMG sub-solves) is PCFIELDSPLIT's full Schur +
+    selfp + multiplicative recipe: with exact sub-solves (LU on S_uu and S_pp) both apply the same
+    operator, so GMRES takes the same iterations to the same solution; with the AMGs, nearly the same."""
+    _petsc()
+    from polypore.solvers.petsc_fieldsplit import PetscBlockContactSolver, PetscBlockPoroSolver
+
+    J, r, nu, d, nl, cond, B, pns, _ = poro_system()
+    po = nu + nl
+    lu = {"fieldsplit_m_fieldsplit_u_pc_type": "lu", "fieldsplit_m_fieldsplit_p_pc_type": "lu"}
+    runs = {}
+    for structure in ("condensed", "fieldsplit"):
+        extra = {"pc_type": "fieldsplit"} if structure == "fieldsplit" else {}
+        for sub, opts in (("lu", lu), ("amg", {})):
+            s = PetscBlockPoroSolver(nu, d, nl, cond, near_nullspace=B, rtol=1e-10, options={**opts, **extra})
+            s.pressure_nullspace = pns
+            runs[structure, sub] = (s.solve(J, r), s.iterations[-1])
+        c = PetscBlockContactSolver(nu, d, cond, near_nullspace=B, rtol=1e-10,
+                                    options={"fieldsplit_u_pc_type": "lu", **extra})
+        runs[structure, "contact"] = (c.solve(sp.csr_matrix(J[:po, :po]), r[:po]), c.iterations[-1])
+    for sub in ("lu", "contact"):
+        (xc, ic), (xf, if_) = runs["condensed", sub], runs["fieldsplit", sub]
+        assert ic == if_, (sub, ic, if_)
+        assert np.linalg.norm(xc - xf) <= 1e-8 * np.linalg.norm(xf)
+    assert abs(runs["condensed", "amg"][1] - runs["fieldsplit", "amg"][1]) <= 2
+
+
 @pytest.mark.parametrize("amg", ["gamg", "hypre"])
-def test_block_poro_solver_matches_block_poro(amg):
+@pytest.mark.parametrize("structure", ["condensed", "fieldsplit"])
+def test_block_poro_solver_matches_block_poro(amg, structure):
     _petsc()
     from polypore.solvers.petsc_fieldsplit import PetscBlockPoroSolver
 
     J, r, nu, d, nl, cond, B, pns, _counts = poro_system()
     ref = spla.spsolve(J.tocsc(), r)
-    s = PetscBlockPoroSolver(nu, d, nl, cond, near_nullspace=B, rtol=1e-10, amg=amg, options={"ksp_gmres_restart": 60})
+    options = {"ksp_gmres_restart": 60, **({"pc_type": "fieldsplit"} if structure == "fieldsplit" else {})}
+    s = PetscBlockPoroSolver(nu, d, nl, cond, near_nullspace=B, rtol=1e-10, amg=amg, options=options)
     s.pressure_nullspace = pns
     x = s.solve(J, r)
     assert np.linalg.norm(J @ x - r) <= 1e-9 * np.linalg.norm(r)

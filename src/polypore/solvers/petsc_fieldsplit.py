@@ -58,7 +58,8 @@ from ..core.errors import InputError, RunError
 from .block_contact import ContactCondensation, _diag_blocks
 from .distributed import OwnedRows, _mpi, context, layout_for
 from .petsc import (AMG_KINDS, FIELD, KrylovDriver, PetscStats, ReusePolicy, aij, amg_defaults, collect_garbage,
-                    interleaved_block_size, krylov_defaults, near_nullspace, petsc, vec)
+                    interleaved_block_size, krylov_defaults, near_nullspace, petsc, petsc_options, vec)
+from .petsc_condensed import CondensedPreconditioner
 from .timing import SPLIT
 
 log = logging.getLogger("polypore")
@@ -139,6 +140,19 @@ def contact_rows(cond: ContactCondensation, R: sp.csr_matrix, blk: _RowBlocks) -
     if b == a:
         return None
     d = cond.normal.shape[1]
+    Clhat, Cu_s = contact_blocks(cond, R, blk)
+    nfl = (b - a) // d
+    rl = (np.arange(nfl)[:, None, None] * d + np.arange(d)[None, :, None]) + 0 * np.arange(d)[None, None, :]
+    cl = blk.row0 + a + np.swapaxes(rl, 1, 2)
+    Cl = sp.csr_matrix((Clhat.ravel(), (rl.ravel(), cl.ravel())), shape=(b - a, blk.n))
+    return (Cu_s + Cl).tocsr()
+
+
+def contact_blocks(cond: ContactCondensation, R: sp.csr_matrix, blk: _RowBlocks):
+    """(Cl̂ (nf_local, d, d), Cû csr (nl_local, n), columns as R's) of this rank's faces, from R's
+    contact rows (:func:`contact_rows` without summing them into one matrix)."""
+    a, b = blk.nu, blk.po
+    d = cond.normal.shape[1]
     nfl = (b - a) // d
     M = R[a:b].tocoo()
     f = M.row // d
@@ -149,11 +163,24 @@ def contact_rows(cond: ContactCondensation, R: sp.csr_matrix, blk: _RowBlocks) -
     isu = blk.kind[M.col] == 0
     Cu = sp.csr_matrix((M.data[isu], (M.row[isu], M.col[isu])), shape=(b - a, blk.n))
     sub = ContactCondensation(cond.scale[blk.faces], cond.normal[blk.faces], cond.rho)
-    Clhat, Cu_s = _modified(sub, Clb, Cu)
-    rl = (np.arange(nfl)[:, None, None] * d + np.arange(d)[None, :, None]) + 0 * np.arange(d)[None, None, :]
-    cl = blk.row0 + a + np.swapaxes(rl, 1, 2)
-    Cl = sp.csr_matrix((Clhat.ravel(), (rl.ravel(), cl.ravel())), shape=(b - a, blk.n))
-    return (Cu_s + Cl).tocsr()
+    return _modified(sub, Clb, Cu)
+
+
+def contact_pattern(R: sp.csr_matrix, blk: _RowBlocks, d: int) -> sp.csr_matrix:
+    """Fixed pattern (ones, nl_local × n) of Cû on this rank: each face's d rows get the union of
+    their displacement columns in R (Cû mixes a face's rows: :func:`modified_contact_blocks`)."""
+    a, b = blk.nu, blk.po
+    if b == a:
+        return sp.csr_matrix((0, blk.n))
+    rows = sp.csr_matrix(R[a:b])
+    rows.data = (blk.kind[rows.indices] == 0).astype(float)
+    rows.eliminate_zeros()
+    face = sp.kron(sp.identity((b - a) // d, format="csr"), np.ones((d, d)), format="csr")
+    L = (face @ rows).tocsr()
+    L.sum_duplicates()
+    L.sort_indices()
+    L.data[:] = 1.0
+    return L
 
 
 def lumped_coupling(R: sp.csr_matrix, blk: _RowBlocks) -> np.ndarray:
@@ -257,6 +284,18 @@ class _PreconditionerPattern:
         return sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape)
 
 
+def structure(prefix: str, options: Mapping | None) -> str:
+    """How a block solver preconditions: "fieldsplit" (PETSc's PCFIELDSPLIT, this module's
+    docstring) when ``pc_type = "fieldsplit"`` is asked for in ``options`` or PETSc's options
+    database (under ``prefix``), else "condensed" (:mod:`.petsc_condensed`: the same
+    preconditioner with a fraction of PCFIELDSPLIT's matrices)."""
+    pct = petsc_options(options).get("pc_type")
+    if pct is None:
+        db = petsc().Options()
+        pct = db.getString(prefix + "pc_type") if db.hasName(prefix + "pc_type") else None
+    return "fieldsplit" if pct == "fieldsplit" else "condensed"
+
+
 def _canonical(J) -> sp.csr_matrix:
     J = sp.csr_matrix(J)
     J.sum_duplicates()
@@ -292,6 +331,7 @@ class _FieldSplitBase:
                                    configure=self._configure)
         self._Jm = self._Pm = self._pat = self._key = self._blk = None
         self._nsp_u = None
+        self._cpc = None
 
     @property
     def stats(self) -> PetscStats:
@@ -350,6 +390,31 @@ class _FieldSplitBase:
             del Pdata
         self.driver.stats.convert_seconds += time.perf_counter() - t0
 
+    def _condensed(self, R, blk, new, lump, prefix_u, prefix_p):
+        """The condensed preconditioner's blocks (built for a new pattern, refilled always) and J
+        into PETSc, from this rank's rows R (:mod:`.petsc_condensed`)."""
+        with SPLIT.timed("preconditioner"):
+            has_l = blk.po > blk.nu
+            Clhat, Cu = contact_blocks(self.condensation, R, blk) if has_l else (np.zeros((0, self.d, self.d)),
+                                                                                  sp.csr_matrix((0, blk.n)))
+            if new:
+                if self._cpc is not None:
+                    self._cpc.destroy()
+                self._cpc = CondensedPreconditioner(blk, self.d, prefix_u, prefix_p, self.bs_u, None,
+                                                    on_pressure_build=self._pressure_built)
+                self._cpc.build(R, contact_pattern(R, blk, self.d))
+            self._cpc.update(R, Clhat, Cu, lump)
+            del Clhat, Cu
+        t0 = time.perf_counter()
+        if new:
+            self._Jm = None
+        self._Jm = aij(R, mat=self._Jm)
+        self._Pm = None
+        self.driver.stats.convert_seconds += time.perf_counter() - t0
+
+    def _pressure_built(self):
+        self.pressure_builds = getattr(self, "pressure_builds", 0) + 1
+
     def _forcing(self, target):
         """Newton's forcing term (a KrylovTarget, or None: ``rtol``) as the KSP's rtol of this solve.
 
@@ -370,14 +435,27 @@ class _FieldSplitBase:
         n = blk.n
         nu, po = self.n_u, self._po(n)                      # the fields in the serial numbering
         self._sizes = (nu, po - nu, po, n)
+        cpc = self._cpc if self.structure == "condensed" else None
         if new:
             self._nsp_u = None if self.near_nullspace is None else near_nullspace(self._rows(self.near_nullspace,
                                                                                                 np.arange(nu)))
+            if cpc is not None:
+                cpc.nsp_u = self._nsp_u
         self.driver.operators(self._Jm, self._Pm, changed_pattern=new)
         self._forcing(target)
         if new:
-            self._build_pc(nu, po - nu, po, n)
+            if cpc is not None:
+                pc = self.driver.ksp.getPC()
+                pc.setType("python")
+                pc.setPythonContext(cpc)
+            else:
+                self._build_pc(nu, po - nu, po, n)
         self._new_step = new_step
+        if cpc is not None:
+            cpc.new_step = cpc.new_step or new_step
+            pns = getattr(self, "pressure_nullspace", None)
+            if cpc.has_p and pns is not None and (new or new_step):
+                cpc.pressure_nullspace = self._rows(np.asarray(pns, float), np.arange(po, n))
         lay = self._lay
         b = vec(rhs if lay is None else lay.local(rhs))
         x = self._Jm.createVecRight()
@@ -405,7 +483,9 @@ class _FieldSplitBase:
         for m in (self._Jm, self._Pm):
             if m is not None:
                 m.destroy()
-        self._Jm = self._Pm = self._pat = self._key = self._blk = None
+        if self._cpc is not None:
+            self._cpc.destroy()
+        self._Jm = self._Pm = self._pat = self._key = self._blk = self._cpc = None
         self._nsp_u = None
         collect_garbage(self.driver.comm)
 
@@ -482,9 +562,11 @@ class PetscBlockContactSolver(_FieldSplitBase):
 
     def __post_init__(self):
         nf = self.condensation.normal.shape[0]
+        self.structure = structure(self.prefix, self.options) if nf else "plain"
         defaults = krylov_defaults(False, self.rtol, self.maxiter, self.restart)
         if nf:
-            defaults.update({**_multiplier_schur("u"),
+            defaults.update({**(_multiplier_schur("u") if self.structure == "fieldsplit" else
+                                {"fieldsplit_u_ksp_type": "preonly"}),
                              **_amg_options(self.amg, "fieldsplit_u_", self.near_nullspace is not None, True)})
         else:
             defaults.update(_amg_options(self.amg, "", self.near_nullspace is not None))
@@ -501,7 +583,7 @@ class PetscBlockContactSolver(_FieldSplitBase):
 
     def _configure(self, ksp):
         """After PCSetUp: the rigid-body modes on S (formed anew by selfp at each set-up)."""
-        if self._nsp_u is None or not self.condensation.normal.shape[0]:
+        if self._nsp_u is None or self.structure != "fieldsplit":
             return
         pc = ksp.getPC()
         if pc.getType() != "fieldsplit":
@@ -521,10 +603,14 @@ class PetscBlockContactSolver(_FieldSplitBase):
         t0 = time.perf_counter()
         R, blk = self._rows_of(J, self.n_u, J.shape[0])
         new = self._pattern_changed(R)
-        with SPLIT.timed("preconditioner"):
-            Ml = contact_rows(self.condensation, R, blk)
-        self._matrices(R, Ml, None, blk, new)
-        del R, Ml                   # in PETSc now; OwnedRows.take() left no other reference
+        if self.structure == "condensed":
+            self._condensed(R, blk, new, None, self.prefix + "fieldsplit_u_", None)
+        else:
+            with SPLIT.timed("preconditioner"):
+                Ml = contact_rows(self.condensation, R, blk)
+            self._matrices(R, Ml, None, blk, new)
+            del Ml
+        del R                       # in PETSc now; OwnedRows.take() left no other reference
         x = self._run(blk, rhs, new, target=target)
         self.seconds += time.perf_counter() - t0
         log.debug("PETSc block contact solver: %d GMRES iterations, %.2f s", self.iterations[-1],
@@ -567,11 +653,14 @@ class PetscBlockPoroSolver(_FieldSplitBase):
                              f"{', '.join(PRESSURE_SOLVERS)}")
         m = "fieldsplit_m_" if self.n_l else ""
         u, p = m + "fieldsplit_u_", m + "fieldsplit_p_"
+        self._prefixes = (self.prefix + u, self.prefix + p)
+        self.structure = structure(self.prefix, self.options)
         defaults = krylov_defaults(False, self.rtol, self.maxiter, self.restart)
-        if self.n_l:
-            defaults.update(_multiplier_schur("m"))
-        defaults.update({f"{m}pc_type": "fieldsplit", f"{m}pc_fieldsplit_type": "multiplicative",
-                         f"{u}ksp_type": "preonly", f"{p}ksp_type": "preonly",
+        if self.structure == "fieldsplit":
+            if self.n_l:
+                defaults.update(_multiplier_schur("m"))
+            defaults.update({f"{m}pc_type": "fieldsplit", f"{m}pc_fieldsplit_type": "multiplicative"})
+        defaults.update({f"{u}ksp_type": "preonly", f"{p}ksp_type": "preonly",
                          **_amg_options(self.amg, u, self.near_nullspace is not None, bool(self.n_l))})
         kind = {"auto": "gamg", "amg": "gamg", "gamg": "gamg", "hypre": "hypre"}.get(self.pressure)
         if kind:
@@ -620,6 +709,8 @@ class PetscBlockPoroSolver(_FieldSplitBase):
 
     def _configure(self, ksp):
         """After PCSetUp: inner splits, near-null spaces, and the pressure set-up kept within a step."""
+        if self.structure != "fieldsplit":
+            return
         inner = self._inner(ksp)
         if inner.getType() != "fieldsplit":
             return
@@ -666,9 +757,14 @@ class PetscBlockPoroSolver(_FieldSplitBase):
             if new_step:
                 self._lump = lumped_coupling(R, blk)
                 self._fkey = fkey
-            Ml = contact_rows(self.condensation, R, blk) if nl else None
-        self._matrices(R, Ml, self._lump, blk, new)
-        del R, Ml                   # in PETSc now; OwnedRows.take() left no other reference
+        if self.structure == "condensed":
+            self._condensed(R, blk, new, self._lump, *self._prefixes)
+        else:
+            with SPLIT.timed("preconditioner"):
+                Ml = contact_rows(self.condensation, R, blk) if nl else None
+            self._matrices(R, Ml, self._lump, blk, new)
+            del Ml
+        del R                       # in PETSc now; OwnedRows.take() left no other reference
         x = self._run(blk, rhs, new, new_step, target)
         self.seconds += time.perf_counter() - t0
         log.debug("PETSc block poro solver: %d GMRES iterations, %.2f s", self.iterations[-1],

@@ -1,0 +1,347 @@
+"""The block preconditioners of :mod:`.block_contact` with the multipliers condensed by polypore
+and the AMG sub-solves in PETSc: a petsc4py ``python`` PC (the default of the ``block-petsc``
+solvers; ``pc_type = "fieldsplit"`` selects PETSc's PCFIELDSPLIT instead, :mod:`.petsc_fieldsplit`).
+
+It applies exactly what the fieldsplit recipe applies (full Schur factorisation on the multipliers
+with point-block Jacobi, ``selfp``, then a multiplicative (u, p) split of the Schur block)::
+
+    y_l = Cl̂⁻¹ r_l
+    z   = r_m − Bt y_l                                   (m = u, p)
+    x_u = AMG(S_uu) z_u
+    x_p = AMG(S_pp) (z_p − S_pu x_u)
+    x_l = y_l − (Cl̂⁻¹ Cû) x_m
+
+with S = P_mm − Bt Cl̂⁻¹ Cû (P: J with Cl̂, Cû in the contact rows and Ŝ_p in the pressure block),
+but holds only the blocks it applies. PCFIELDSPLIT extracts P's whole (u, p) block, forms S from it
+(MatMatMult and MatAXPY into a new matrix at every Newton iteration), then copies S's rows of each
+inner split and its diagonal blocks: about five matrices of J's size besides J and P. Here PETSc holds
+J, S_uu, S_pp, S_pu and two small contact matrices; the product Bt (Cl̂⁻¹ Cû), nonzero near the
+fractures only, is the one PETSc product (it needs the contact rows of other ranks' faces). On C5
+at 127k cells this is ≈ 250 MB less per rank and a cheaper set-up (docs/parallel.md).
+
+Every matrix keeps one nonzero pattern per Jacobian pattern (values refilled in place), so the
+AMG set-ups and the product reuse PETSc's structures. Option names are those of the fieldsplit
+recipe: the displacement AMG reads ``fieldsplit_m_fieldsplit_u_*`` (``fieldsplit_u_*`` without
+multipliers or pressures), the pressure AMG ``fieldsplit_m_fieldsplit_p_*`` (``fieldsplit_p_*``
+without multipliers), each under the solver's prefix.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+
+from .petsc import aij, near_nullspace, petsc
+from .timing import SPLIT
+
+
+def field_index(blk) -> tuple[np.ndarray, np.ndarray]:
+    """(index, totals): the index of every global column within its own field (u, l or p), every
+    field numbered rank by rank (the layout of a PETSc matrix of one field), and the global sizes
+    (3,) of the fields. ``blk`` is the solver's :class:`~.petsc_fieldsplit._RowBlocks`."""
+    lay = blk.layout
+    mine = (blk.nu, blk.po - blk.nu, blk.n_rows - blk.po)
+    counts = [mine] if lay is None else lay.comm.allgather(mine)
+    starts = [0] if lay is None else [int(s) for s in lay.displs]
+    it = np.int32 if blk.n < 2**31 - 1 else np.int64
+    idx = np.empty(blk.n, it)
+    off = np.zeros(3, np.int64)
+    for s, c in zip(starts, counts):           # one pass per rank, not per unknown
+        for f in range(3):
+            idx[s:s + c[f]] = off[f] + np.arange(c[f])
+            s += c[f]
+        off += c
+    return idx, off
+
+
+def _rows_of_keys(keys: np.ndarray, ncols: int, nrows: int):
+    """(indptr, indices) of a CSR pattern from its sorted row-major keys row·ncols + col."""
+    rows = keys // ncols
+    indptr = np.zeros(nrows + 1, np.int64)
+    np.cumsum(np.bincount(rows, minlength=nrows), out=indptr[1:])
+    return indptr, (keys % ncols)
+
+
+class _Block:
+    """One block of S with a fixed pattern: J's entries of the block ∪ extra keys (the product's,
+    the pressure diagonal). The values are J's (in J's row-major order) plus the extras' added at
+    their positions; ``from_j`` marks the pattern's entries that are J's."""
+
+    def __init__(self, rows, cols, nrows: int, ncols: int, extra=None):
+        kj = rows.astype(np.int64) * ncols + cols
+        ke = np.unique(np.concatenate(extra)) if extra else np.zeros(0, np.int64)
+        keys = np.union1d(kj, ke) if ke.size else kj
+        self.from_j = None if keys.size == kj.size else np.isin(keys, kj, assume_unique=True)
+        self.keys = keys
+        self.nrows, self.ncols = nrows, ncols
+        indptr, indices = _rows_of_keys(keys, ncols, nrows)
+        self.csr = sp.csr_matrix((np.zeros(keys.size), indices, indptr), shape=(nrows, ncols))
+        self.mat = None
+
+    def positions(self, rows, cols) -> np.ndarray:
+        """Positions in the pattern of the entries (rows, cols), which it must hold."""
+        return np.searchsorted(self.keys, rows.astype(np.int64) * self.ncols + cols)
+
+    def fill(self, jvals):
+        """Set J's values (the block's entries of J in order); the extras are added with :meth:`add`
+        before :meth:`to_petsc`."""
+        if self.from_j is None:
+            self.csr.data[:] = jvals
+        else:
+            self.csr.data[:] = 0.0
+            self.csr.data[self.from_j] = jvals
+
+    def add(self, pos, vals):
+        np.add.at(self.csr.data, pos, vals)
+
+    def to_petsc(self, comm, bs: int = 1):
+        self.mat = aij(self.csr, comm, bs, self.mat)
+        return self.mat
+
+    def destroy(self):
+        if self.mat is not None:
+            self.mat.destroy()
+            self.mat = None
+
+
+class CondensedPreconditioner:
+    """petsc4py ``python`` PC context: the multipliers condensed as in the module docstring.
+
+    Built for one pattern of J's rows on this rank (:meth:`build`), refilled for every Newton system
+    (:meth:`update`), set up by PETSc's PCSetUp (:meth:`setUp`: the AMG of S_uu, and of S_pp when
+    ``new_step``), applied by GMRES (:meth:`apply`).
+
+    Parameters
+    ----------
+    blk : the solver's _RowBlocks (rows: u [0, nu), l [nu, po), p [po, n_rows))
+    d : space dimension (multiplier block size)
+    prefix_u, prefix_p : full option prefixes of the displacement and pressure sub-solves (p: None
+        for contact)
+    bs_u : block size of the displacement unknowns
+    nsp_u : rigid-body near-null space (MatNullSpace of this rank's u rows) or None
+    on_pressure_build : called at every set-up of the pressure AMG
+    """
+
+    def __init__(self, blk, d: int, prefix_u: str, prefix_p: str | None, bs_u: int, nsp_u, on_pressure_build=None):
+        self.P = petsc()
+        self.blk, self.d = blk, d
+        self.comm = self.P.COMM_WORLD          # one rank serially, as everywhere in the PETSc solvers
+        self.prefix_u, self.prefix_p = prefix_u, prefix_p
+        self.bs_u, self.nsp_u = bs_u, nsp_u
+        self.new_step = True
+        self.pressure_nullspace = None        # this rank's pressure rows of it, set by the solver
+        self.on_pressure_build = on_pressure_build
+        self._built = False
+        self.ku = self.kp = None
+        self._vecs = None
+        self._nsp_p = None
+
+    # ---- structure (once per pattern of J) --------------------------------------------------
+    def build(self, R: sp.csr_matrix, lpattern: sp.csr_matrix | None):
+        """Patterns of every block from this rank's rows R (csr, canonical) and the fixed pattern of
+        the contact rows' displacement part (``lpattern``, nl_local × n, or None without multipliers).
+        """
+        blk = self.blk
+        nu, po, nr, n = blk.nu, blk.po, blk.n_rows, blk.n
+        self.fidx, totals = field_index(blk)
+        self.has_l, self.has_p = totals[1] > 0, self.prefix_p is not None
+        rows = np.repeat(np.arange(nr, dtype=np.int32), np.diff(R.indptr))
+        ck = blk.kind[R.indices]
+        # which block each of J's entries goes to: 0 S_uu, 1 S_pu, 2 S_pp, 3 Bt, −1 none
+        bid = np.full(R.nnz, -1, np.int8)
+        isu_row, isp_row = rows < nu, rows >= po
+        bid[isu_row & (ck == 0)] = 0
+        if self.has_p:
+            bid[isp_row & (ck == 0)] = 1
+            bid[isp_row & (ck == 2)] = 2
+        bid[(isu_row | isp_row) & (ck == 1)] = 3
+        self.bid = bid
+        del isu_row, isp_row, ck
+        if self.has_l:
+            sel = bid == 3
+            self.Bt = _Block(rows[sel], R.indices[sel], nr, n)
+            lp = lpattern.tocoo()
+            self.M = _Block(lp.row.astype(np.int64) + nu, lp.col, nr, n)
+            self._face_rows(lpattern)
+            self.M.fill(np.zeros(lpattern.nnz))
+            self.Bt.fill(R.data[sel])
+            Q = self.Bt.to_petsc(self.comm).matMult(self.M.to_petsc(self.comm))
+            qi, qj, _ = Q.getValuesCSR()
+            Q.destroy()
+            qr = np.repeat(np.arange(nr, dtype=np.int64), np.diff(qi))
+            qk = blk.kind[qj]
+            self._q_uu = (qr < nu) & (qk == 0)
+            self._q_pu = (qr >= po) & (qk == 0)
+            q_uu = (qr[self._q_uu], self.fidx[qj[self._q_uu]])
+            q_pu = (qr[self._q_pu], qj[self._q_pu].astype(np.int64))
+            self.Q = None
+        else:
+            q_uu = q_pu = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        sel = bid == 0
+        NU = int(totals[0])
+        self.Suu = _Block(rows[sel], self.fidx[R.indices[sel]], nu, NU,
+                          [q_uu[0] * NU + q_uu[1]] if q_uu[0].size else None)
+        self._pos_q_uu = self.Suu.positions(*q_uu)
+        if self.has_p:
+            sel = bid == 1
+            self.Spu = _Block(rows[sel], R.indices[sel], nr, n, [q_pu[0] * n + q_pu[1]] if q_pu[0].size else None)
+            self._pos_q_pu = self.Spu.positions(*q_pu)
+            sel = bid == 2
+            NP = int(totals[2])
+            pr = np.arange(nr - po, dtype=np.int64)
+            prow0 = int(self.fidx[blk.row0 + po]) if nr > po else 0
+            diag = pr * NP + prow0 + pr
+            self.Spp = _Block(rows[sel] - po, self.fidx[R.indices[sel]], nr - po, NP, [diag])
+            self._pos_pdiag = self.Spp.positions(pr, prow0 + pr)
+        self._built = True
+
+    def _face_rows(self, lpattern):
+        """Index arrays for Cl̂⁻¹ Cû on the fixed contact pattern, whose d rows of a face have the same
+        columns: entry e of row f d + i at offset j takes Σ_k inv_f[i, k] Cû[f d + k, j]."""
+        d = self.d
+        L = lpattern
+        r = np.repeat(np.arange(L.shape[0]), np.diff(L.indptr))
+        j = np.arange(L.nnz) - L.indptr[r]
+        f = r // d
+        self._ef, self._ei = f, r % d
+        self._src = L.indptr[f[:, None] * d + np.arange(d)[None, :]] + j[:, None]
+        self._lkeys = _keys_of(L)
+
+    # ---- values (every Newton system) ---------------------------------------------------------
+    def update(self, R: sp.csr_matrix, Clhat: np.ndarray | None, Cu: sp.csr_matrix | None, lump):
+        """Refill every block from this rank's rows R, the modified contact blocks (Clhat (nfl, d, d),
+        Cu (nl_local × n csr, a sub-pattern of the build's)) and the lumped coupling (n_p_local,) or
+        None."""
+        blk = self.blk
+        nu, po = blk.nu, blk.po
+        bid = self.bid
+        if self.has_l:
+            self.inv = np.linalg.inv(Clhat) if len(Clhat) else np.zeros((0, self.d, self.d))
+            cu = np.zeros(len(self._lkeys))
+            cu[np.searchsorted(self._lkeys, _keys_of(Cu))] = Cu.data
+            mvals = np.einsum("ek,ek->e", self.inv[self._ef, self._ei, :], cu[self._src])
+            self.M.fill(mvals)
+            self.Bt.fill(R.data[bid == 3])
+            Bm, Mm = self.Bt.to_petsc(self.comm), self.M.to_petsc(self.comm)
+            self.Q = Bm.matMult(Mm, result=self.Q)
+            qv = self.Q.getValuesCSR()[2]
+        self.Suu.fill(R.data[bid == 0])
+        if self.has_l and self._pos_q_uu.size:
+            self.Suu.add(self._pos_q_uu, -qv[self._q_uu])
+        self.Suu.to_petsc(self.comm, self.bs_u)
+        if self.has_p:
+            self.Spu.fill(R.data[bid == 1])
+            if self.has_l and self._pos_q_pu.size:
+                self.Spu.add(self._pos_q_pu, -qv[self._q_pu])
+            self.Spu.to_petsc(self.comm)
+            self.Spp.fill(R.data[bid == 2])
+            if lump is not None:
+                self.Spp.add(self._pos_pdiag, -np.asarray(lump))
+            self.Spp.to_petsc(self.comm)
+
+    # ---- PETSc's python PC interface ----------------------------------------------------------
+    def _ksp(self, prefix, A):
+        ksp = self.P.KSP().create(comm=self.comm)
+        ksp.setOptionsPrefix(prefix)
+        ksp.setType("preonly")
+        ksp.setOperators(A, A)
+        return ksp
+
+    def setFromOptions(self, pc):
+        for k in (self.ku, self.kp):
+            if k is not None:
+                k.setFromOptions()
+
+    def setUp(self, pc):
+        """The AMG set-ups: S_uu at every PCSetUp, S_pp at the first of a time step (Ŝ_p changes with
+        the step only, as BlockPoroSolver's _PressureSolve keeps it)."""
+        with SPLIT.timed("preconditioner"):
+            if self.ku is None:
+                if self.nsp_u is not None:
+                    self.Suu.mat.setNearNullSpace(self.nsp_u)
+                self.ku = self._ksp(self.prefix_u, self.Suu.mat)
+                self.ku.setFromOptions()
+                if self.has_p:
+                    self.kp = self._ksp(self.prefix_p, self.Spp.mat)
+                    self.kp.setFromOptions()
+                self._vecs = self._work()
+            self.ku.setUp()
+            if self.kp is not None:
+                if self.new_step and self.pressure_nullspace is not None:
+                    old, self._nsp_p = self._nsp_p, near_nullspace(self.pressure_nullspace, self.comm)
+                    self.Spp.mat.setNearNullSpace(self._nsp_p)
+                    if old is not None:
+                        old.destroy()
+                self.kp.getPC().setReusePreconditioner(not self.new_step)
+                self.kp.setUp()
+                if self.new_step:
+                    if self.on_pressure_build is not None:
+                        self.on_pressure_build()
+                    self.new_step = False
+
+    def _work(self):
+        xu, zu = self.Suu.mat.createVecs()
+        out = {"xu": xu, "zu": zu}
+        if self.has_p:
+            out["xp"], out["zp"] = self.Spp.mat.createVecs()
+        if self.has_l or self.has_p:
+            out["w"], out["t"] = (self.Spu if self.has_p else self.Bt).mat.createVecs()
+        return out
+
+    def apply(self, pc, x, y):
+        blk, v = self.blk, self._vecs
+        nu, po, d = blk.nu, blk.po, self.d
+        r = x.getArray(readonly=True)
+        out = np.zeros(len(r))
+        z = np.array(r)
+        if self.has_l:
+            yl = np.einsum("fij,fj->fi", self.inv, r[nu:po].reshape(-1, d)).ravel()
+            w = np.zeros(len(r))
+            w[nu:po] = yl
+            v["w"].setArray(w)
+            self.Bt.mat.mult(v["w"], v["t"])
+            z -= v["t"].getArray(readonly=True)
+        v["zu"].setArray(z[:nu])
+        self.ku.solve(v["zu"], v["xu"])
+        out[:nu] = v["xu"].getArray(readonly=True)
+        if self.has_p:
+            v["w"].setArray(out)
+            self.Spu.mat.mult(v["w"], v["t"])
+            v["zp"].setArray(z[po:] - v["t"].getArray(readonly=True)[po:])
+            self.kp.solve(v["zp"], v["xp"])
+            out[po:] = v["xp"].getArray(readonly=True)
+        if self.has_l:
+            v["w"].setArray(out)
+            self.M.mat.mult(v["w"], v["t"])
+            out[nu:po] = yl - v["t"].getArray(readonly=True)[nu:po]
+        y.setArray(out)
+
+    def view(self, pc, viewer):
+        viewer.printfASCII("polypore's condensed multipliers (Cl̂ inverted block by block), then\n")
+        for k in (self.ku, self.kp):
+            if k is not None:
+                k.view(viewer)
+
+    def destroy(self, pc=None):
+        for k in (self.ku, self.kp):
+            if k is not None:
+                k.destroy()
+        self.ku = self.kp = None
+        for v in (self._vecs or {}).values():
+            v.destroy()
+        self._vecs = None
+        for b in ("Bt", "M", "Suu", "Spu", "Spp"):
+            blk = getattr(self, b, None)
+            if blk is not None:
+                blk.destroy()
+        if getattr(self, "Q", None) is not None:
+            self.Q.destroy()
+            self.Q = None
+        if self._nsp_p is not None:
+            self._nsp_p.destroy()
+            self._nsp_p = None
+
+
+def _keys_of(A: sp.csr_matrix) -> np.ndarray:
+    rows = np.repeat(np.arange(A.shape[0], dtype=np.int64), np.diff(A.indptr))
+    return rows * A.shape[1] + A.indices.astype(np.int64)
