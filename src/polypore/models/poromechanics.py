@@ -392,6 +392,15 @@ class Poromechanics:
         if self.layout is not None:
             register_layout(self.solver, self.layout)
 
+    def release_solver(self) -> None:
+        """Free the linear solver's matrices and preconditioner set-ups (PETSc's, where it has any)
+        and return the freed heap: after the last step, before the outputs. A later step sets the
+        solver up again."""
+        release = getattr(self.solver, "release", None)
+        if release is not None:
+            release()
+        trim_heap()
+
     def dof_owner(self, part: np.ndarray) -> np.ndarray:
         """(n_unknowns,) owner rank of every step unknown [free u, λ̃, free pressures] for the cell
         ranks ``part``: the mechanics' and the flow's rules, a cell pressure its cell's."""

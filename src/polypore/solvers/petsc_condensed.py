@@ -54,48 +54,38 @@ def field_index(blk) -> tuple[np.ndarray, np.ndarray]:
     return idx, off
 
 
-def _rows_of_keys(keys: np.ndarray, ncols: int, nrows: int):
-    """(indptr, indices) of a CSR pattern from its sorted row-major keys row·ncols + col."""
-    rows = keys // ncols
-    indptr = np.zeros(nrows + 1, np.int64)
-    np.cumsum(np.bincount(rows, minlength=nrows), out=indptr[1:])
-    return indptr, (keys % ncols)
-
-
 class _Block:
-    """One block of S with a fixed pattern: J's entries of the block ∪ extra keys (the product's,
-    the pressure diagonal). The values are J's (in J's row-major order) plus the extras' added at
-    their positions; ``from_j`` marks the pattern's entries that are J's."""
+    """One block with a fixed pattern: J's entries of the block (rows, cols: row-major, as in J) ∪
+    extra entries (the product's, the pressure diagonal), whose positions :meth:`positions` gives
+    while the block is built (``extra`` (rows, cols) pairs). Only the int32 pattern and a mask of
+    J's entries are kept; the values live in PETSc's matrix (:meth:`to_petsc`)."""
 
-    def __init__(self, rows, cols, nrows: int, ncols: int, extra=None):
+    def __init__(self, rows, cols, nrows: int, ncols: int, extra=(), want=()):
         kj = rows.astype(np.int64) * ncols + cols
-        ke = np.unique(np.concatenate(extra)) if extra else np.zeros(0, np.int64)
+        ke = np.unique(np.concatenate([r.astype(np.int64) * ncols + c for r, c in extra])) if extra else kj[:0]
         keys = np.union1d(kj, ke) if ke.size else kj
         self.from_j = None if keys.size == kj.size else np.isin(keys, kj, assume_unique=True)
-        self.keys = keys
-        self.nrows, self.ncols = nrows, ncols
-        indptr, indices = _rows_of_keys(keys, ncols, nrows)
-        self.csr = sp.csr_matrix((np.zeros(keys.size), indices, indptr), shape=(nrows, ncols))
+        self.size = keys.size
+        it = np.int32 if max(ncols, keys.size) < 2**31 - 1 else np.int64
+        self.indptr = np.zeros(nrows + 1, it)
+        np.cumsum(np.bincount(keys // ncols, minlength=nrows), out=self.indptr[1:])
+        self.indices = (keys % ncols).astype(it)
+        self.shape = (nrows, ncols)
+        # positions of the entries asked for in ``want`` (rows, cols), which the pattern holds
+        self.pos = [np.searchsorted(keys, r.astype(np.int64) * ncols + c).astype(it) for r, c in want]
         self.mat = None
 
-    def positions(self, rows, cols) -> np.ndarray:
-        """Positions in the pattern of the entries (rows, cols), which it must hold."""
-        return np.searchsorted(self.keys, rows.astype(np.int64) * self.ncols + cols)
-
-    def fill(self, jvals):
-        """Set J's values (the block's entries of J in order); the extras are added with :meth:`add`
-        before :meth:`to_petsc`."""
+    def values(self, jvals) -> np.ndarray:
+        """(size,) values with J's entries ``jvals`` (in J's order) and zeros elsewhere."""
         if self.from_j is None:
-            self.csr.data[:] = jvals
-        else:
-            self.csr.data[:] = 0.0
-            self.csr.data[self.from_j] = jvals
+            return np.array(jvals, float)
+        out = np.zeros(self.size)
+        out[self.from_j] = jvals
+        return out
 
-    def add(self, pos, vals):
-        np.add.at(self.csr.data, pos, vals)
-
-    def to_petsc(self, comm, bs: int = 1):
-        self.mat = aij(self.csr, comm, bs, self.mat)
+    def to_petsc(self, data, comm, bs: int = 1):
+        """The block's PETSc matrix with values ``data`` (created once, refilled in place)."""
+        self.mat = aij(sp.csr_matrix((data, self.indices, self.indptr), shape=self.shape), comm, bs, self.mat)
         return self.mat
 
     def destroy(self):
@@ -131,7 +121,6 @@ class CondensedPreconditioner:
         self.new_step = True
         self.pressure_nullspace = None        # this rank's pressure rows of it, set by the solver
         self.on_pressure_build = on_pressure_build
-        self._built = False
         self.ku = self.kp = None
         self._vecs = None
         self._nsp_p = None
@@ -157,15 +146,16 @@ class CondensedPreconditioner:
         bid[(isu_row | isp_row) & (ck == 1)] = 3
         self.bid = bid
         del isu_row, isp_row, ck
+        none = (np.zeros(0, np.int64), np.zeros(0, np.int64))
+        q_uu = q_pu = none
         if self.has_l:
             sel = bid == 3
             self.Bt = _Block(rows[sel], R.indices[sel], nr, n)
             lp = lpattern.tocoo()
             self.M = _Block(lp.row.astype(np.int64) + nu, lp.col, nr, n)
             self._face_rows(lpattern)
-            self.M.fill(np.zeros(lpattern.nnz))
-            self.Bt.fill(R.data[sel])
-            Q = self.Bt.to_petsc(self.comm).matMult(self.M.to_petsc(self.comm))
+            Q = self.Bt.to_petsc(self.Bt.values(R.data[sel]), self.comm).matMult(
+                self.M.to_petsc(self.M.values(np.zeros(lpattern.nnz)), self.comm))
             qi, qj, _ = Q.getValuesCSR()
             Q.destroy()
             qr = np.repeat(np.arange(nr, dtype=np.int64), np.diff(qi))
@@ -175,25 +165,15 @@ class CondensedPreconditioner:
             q_uu = (qr[self._q_uu], self.fidx[qj[self._q_uu]])
             q_pu = (qr[self._q_pu], qj[self._q_pu].astype(np.int64))
             self.Q = None
-        else:
-            q_uu = q_pu = (np.zeros(0, np.int64), np.zeros(0, np.int64))
         sel = bid == 0
-        NU = int(totals[0])
-        self.Suu = _Block(rows[sel], self.fidx[R.indices[sel]], nu, NU,
-                          [q_uu[0] * NU + q_uu[1]] if q_uu[0].size else None)
-        self._pos_q_uu = self.Suu.positions(*q_uu)
+        self.Suu = _Block(rows[sel], self.fidx[R.indices[sel]], nu, int(totals[0]), [q_uu], [q_uu])
         if self.has_p:
             sel = bid == 1
-            self.Spu = _Block(rows[sel], R.indices[sel], nr, n, [q_pu[0] * n + q_pu[1]] if q_pu[0].size else None)
-            self._pos_q_pu = self.Spu.positions(*q_pu)
+            self.Spu = _Block(rows[sel], R.indices[sel], nr, n, [q_pu], [q_pu])
             sel = bid == 2
-            NP = int(totals[2])
             pr = np.arange(nr - po, dtype=np.int64)
-            prow0 = int(self.fidx[blk.row0 + po]) if nr > po else 0
-            diag = pr * NP + prow0 + pr
-            self.Spp = _Block(rows[sel] - po, self.fidx[R.indices[sel]], nr - po, NP, [diag])
-            self._pos_pdiag = self.Spp.positions(pr, prow0 + pr)
-        self._built = True
+            diag = (pr, (int(self.fidx[blk.row0 + po]) if nr > po else 0) + pr)
+            self.Spp = _Block(rows[sel] - po, self.fidx[R.indices[sel]], nr - po, int(totals[2]), [diag], [diag])
 
     def _face_rows(self, lpattern):
         """Index arrays for Cl̂⁻¹ Cû on the fixed contact pattern, whose d rows of a face have the same
@@ -220,24 +200,25 @@ class CondensedPreconditioner:
             cu = np.zeros(len(self._lkeys))
             cu[np.searchsorted(self._lkeys, _keys_of(Cu))] = Cu.data
             mvals = np.einsum("ek,ek->e", self.inv[self._ef, self._ei, :], cu[self._src])
-            self.M.fill(mvals)
-            self.Bt.fill(R.data[bid == 3])
-            Bm, Mm = self.Bt.to_petsc(self.comm), self.M.to_petsc(self.comm)
+            Mm = self.M.to_petsc(mvals, self.comm)
+            Bm = self.Bt.to_petsc(self.Bt.values(R.data[bid == 3]), self.comm)
             self.Q = Bm.matMult(Mm, result=self.Q)
             qv = self.Q.getValuesCSR()[2]
-        self.Suu.fill(R.data[bid == 0])
-        if self.has_l and self._pos_q_uu.size:
-            self.Suu.add(self._pos_q_uu, -qv[self._q_uu])
-        self.Suu.to_petsc(self.comm, self.bs_u)
+        # the pattern's entries are unique: plain fancy-index updates add each once
+        data = self.Suu.values(R.data[bid == 0])
+        if self.has_l:
+            data[self.Suu.pos[0]] -= qv[self._q_uu]
+        self.Suu.to_petsc(data, self.comm, self.bs_u)
         if self.has_p:
-            self.Spu.fill(R.data[bid == 1])
-            if self.has_l and self._pos_q_pu.size:
-                self.Spu.add(self._pos_q_pu, -qv[self._q_pu])
-            self.Spu.to_petsc(self.comm)
-            self.Spp.fill(R.data[bid == 2])
+            data = self.Spu.values(R.data[bid == 1])
+            if self.has_l:
+                data[self.Spu.pos[0]] -= qv[self._q_pu]
+            self.Spu.to_petsc(data, self.comm)
+            data = self.Spp.values(R.data[bid == 2])
             if lump is not None:
-                self.Spp.add(self._pos_pdiag, -np.asarray(lump))
-            self.Spp.to_petsc(self.comm)
+                data[self.Spp.pos[0]] -= np.asarray(lump)
+            self.Spp.to_petsc(data, self.comm)
+        del data
 
     # ---- PETSc's python PC interface ----------------------------------------------------------
     def _ksp(self, prefix, A):
@@ -265,7 +246,10 @@ class CondensedPreconditioner:
                     self.kp = self._ksp(self.prefix_p, self.Spp.mat)
                     self.kp.setFromOptions()
                 self._vecs = self._work()
+            # KSPSetUp does nothing once set up: the values changed in place would be taken up at
+            # the next solve, inside the Krylov iterations; PCSetUp takes them up here
             self.ku.setUp()
+            self.ku.getPC().setUp()
             if self.kp is not None:
                 if self.new_step and self.pressure_nullspace is not None:
                     old, self._nsp_p = self._nsp_p, near_nullspace(self.pressure_nullspace, self.comm)
@@ -274,6 +258,7 @@ class CondensedPreconditioner:
                         old.destroy()
                 self.kp.getPC().setReusePreconditioner(not self.new_step)
                 self.kp.setUp()
+                self.kp.getPC().setUp()
                 if self.new_step:
                     if self.on_pressure_build is not None:
                         self.on_pressure_build()

@@ -1,4 +1,10 @@
-"""The block preconditioners of :mod:`.block_contact` expressed with PETSc's PCFIELDSPLIT.
+"""The block preconditioners of :mod:`.block_contact` with PETSc: the solvers of ``block-petsc``.
+
+Two structures apply the same preconditioner. The default, "condensed" (:mod:`.petsc_condensed`),
+eliminates the multipliers in polypore and gives PETSc only the blocks it applies (a petsc4py
+``python`` PC around two AMG KSPs); ``pc_type = "fieldsplit"`` (``[solver.petsc]`` or
+``-poro_pc_type fieldsplit``) builds it from PETSc's PCFIELDSPLIT as below, at the price of
+several copies of P's blocks (docs/parallel.md). This docstring describes the fieldsplit form.
 
 Same systems, same call signatures (``solve(J, rhs)``, ``iterations``, ``seconds``,
 ``pressure_nullspace``), so a model switches by name. GMRES (right-preconditioned, true residual)
@@ -186,46 +192,52 @@ def contact_pattern(R: sp.csr_matrix, blk: _RowBlocks, d: int) -> sp.csr_matrix:
 def lumped_coupling(R: sp.csr_matrix, blk: _RowBlocks) -> np.ndarray:
     """(n_p_local,) Σ_j G_pu,ij G_up,ji / A_jj for this rank's pressure rows i (Ŝ_p = F − diag(·)).
 
-    Serially the product of J's blocks. On N ranks the displacement row j that holds G_up,ji and
-    A_jj may be another rank's: each rank sends (i, j, G_up,ji / A_jj) of its displacement rows to
-    the owner of the pressure i (one Alltoallv), which multiplies by its G_pu,ij.
+    The displacement row j that holds G_up,ji and A_jj may be another rank's: each rank sends
+    (i, j, G_up,ji / A_jj) of its displacement rows to the owner of the pressure i (one
+    Alltoallv; serially the triples stay here), which multiplies by its G_pu,ij. Works on R's CSR
+    arrays and the entries of the two coupling blocks only: converting R's rows to coordinates
+    cost ≈ 180 MB per rank for a moment at every time step on C5 at 127k cells.
     """
-    nu, po, row0 = blk.nu, blk.po, blk.row0
+    nu, po, row0, n = blk.nu, blk.po, blk.row0, blk.n
     lay = blk.layout
+    diag = R.diagonal(k=row0)[:nu]                           # A_jj of this rank's rows j
+    a = int(R.indptr[po])
+    gup = np.flatnonzero(blk.kind[R.indices[:int(R.indptr[nu])]] == 2)        # entries G_up,ji
+    gj = np.searchsorted(R.indptr, gup, side="right") - 1                     # their local row j
+    gi = R.indices[gup].astype(np.int64)                                      # pressure column i
+    w = R.data[gup] / diag[gj]
+    gj = gj.astype(np.int64) + row0
+    del gup
     if lay is None:
-        A, Gup, Gpu = R[:nu, :nu], R[:nu, po:], R[po:, :nu]
-        return np.asarray((Gpu @ sp.diags(1.0 / A.diagonal())).multiply(Gup.T).sum(axis=1)).ravel()
-    U = R[:nu].tocoo()
-    diag = np.zeros(nu)
-    on = U.col == row0 + U.row
-    diag[U.row[on]] = U.data[on]
-    isp = blk.kind[U.col] == 2
-    gi, gj = U.col[isp].astype(np.int64), row0 + U.row[isp].astype(np.int64)   # (pressure, displacement)
-    w = U.data[isp] / diag[U.row[isp]]
-    ends = lay.displs + lay.counts
-    dest = np.searchsorted(ends, gi, side="right")
-    order = np.argsort(dest, kind="stable")
-    send = np.stack([gi[order].astype(float), gj[order].astype(float), w[order]], axis=1)  # < 2^53: exact
-    size = lay.comm.Get_size()
-    scount = np.bincount(dest, minlength=size).astype(np.int64)
-    rcount = np.asarray(lay.comm.alltoall(scount.tolist()), np.int64)
-    recv = np.empty((int(rcount.sum()), 3))
-    sd = np.concatenate([[0], np.cumsum(scount)[:-1]]) * 3
-    rd = np.concatenate([[0], np.cumsum(rcount)[:-1]]) * 3
-    MPI = _mpi()
-    lay.comm.Alltoallv([np.ascontiguousarray(send), (scount * 3, sd), MPI.DOUBLE], [recv, (rcount * 3, rd), MPI.DOUBLE])
-    P = R[po:].tocoo()
-    isu = blk.kind[P.col] == 0
-    keys = (P.row[isu].astype(np.int64)) * blk.n + P.col[isu]            # sorted: rows, then columns
-    vals = P.data[isu]
-    ri = recv[:, 0].astype(np.int64) - row0 - po
-    k = ri * blk.n + recv[:, 1].astype(np.int64)
+        recv = (gi, gj, w)
+    else:
+        ends = lay.displs + lay.counts
+        dest = np.searchsorted(ends, gi, side="right")
+        order = np.argsort(dest, kind="stable")
+        send = np.stack([gi[order].astype(float), gj[order].astype(float), w[order]], axis=1)  # < 2^53: exact
+        del order, gi, gj, w
+        size = lay.comm.Get_size()
+        scount = np.bincount(dest, minlength=size).astype(np.int64)
+        rcount = np.asarray(lay.comm.alltoall(scount.tolist()), np.int64)
+        buf = np.empty((int(rcount.sum()), 3))
+        sd = np.concatenate([[0], np.cumsum(scount)[:-1]]) * 3
+        rd = np.concatenate([[0], np.cumsum(rcount)[:-1]]) * 3
+        MPI = _mpi()
+        lay.comm.Alltoallv([np.ascontiguousarray(send), (scount * 3, sd), MPI.DOUBLE],
+                           [buf, (rcount * 3, rd), MPI.DOUBLE])
+        del send
+        recv = (buf[:, 0].astype(np.int64), buf[:, 1].astype(np.int64), buf[:, 2])
     out = np.zeros(blk.n_rows - po)
-    if not len(keys):
+    gpu = a + np.flatnonzero(blk.kind[R.indices[a:]] == 0)                   # entries G_pu,ij
+    if not gpu.size or not recv[0].size:
         return out
+    prow = np.searchsorted(R.indptr, gpu, side="right") - 1 - po
+    keys = prow.astype(np.int64) * n + R.indices[gpu]                         # sorted: rows, then columns
+    ri = recv[0] - row0 - po
+    k = ri * n + recv[1]
     pos = np.minimum(np.searchsorted(keys, k), len(keys) - 1)
     hit = keys[pos] == k                       # G_up,ji without a G_pu,ij adds nothing
-    np.add.at(out, ri[hit], vals[pos[hit]] * recv[hit, 2])
+    np.add.at(out, ri[hit], R.data[gpu[pos[hit]]] * recv[2][hit])
     return out
 
 
