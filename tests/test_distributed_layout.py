@@ -3,6 +3,7 @@ of the unknowns, and the dof layout's renumbering. No MPI needed: a stand-in com
 rank; the 2-rank runs themselves are in test_petsc_mpi.py."""
 
 import numpy as np
+import pytest
 import scipy.sparse as sp
 
 from polypore.mesh.partition import cell_graph, partition_cells
@@ -114,6 +115,15 @@ def test_block_pattern_restricted_to_a_ranks_rows_is_those_rows_of_the_whole_pat
         total += R.nnz
     assert total == full.nnz
     assert all(k is None for k in whole.keep)                  # unrestricted: no index lists
+    # block by block (a fixed block summed once, the others added per iteration) in block order:
+    # the same sums as fill, bit for bit, also on a rank's rows
+    data = whole.add(whole.add(whole.zeros(), 0, values[0]), 1, values[1])
+    assert np.array_equal(whole.matrix(whole.add(data, 2, values[2])).data, full.data)
+    with pytest.raises(ValueError, match="block 1"):
+        whole.add(whole.zeros(), 1, values[0])
+    R = part.matrix(part.add(part.add(part.add(part.zeros(), 0, part.take(0, values[0])), 1, part.take(1, values[1])),
+                             2, part.take(2, values[2])))
+    assert np.array_equal(R.data, part.fill([part.take(k, v) for k, v in enumerate(values)]).data)
 
 
 def test_run_summary_has_the_time_split(tmp_path, cli):

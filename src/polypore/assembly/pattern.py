@@ -66,10 +66,17 @@ class BlockPattern:
     pattern : Pattern (n_rows, n_cols) of the kept contributions (local rows, mapped columns)
     keep : tuple, per block the (k_b,) int64 positions of its kept contributions, or None when
         every contribution of the block is kept
+    starts : (n_blocks + 1,) int, where each block's kept contributions start in ``pattern.slot``
+
+    Besides :meth:`fill` (every block at once), the data can be built block by block with
+    :meth:`add`, in block order: a block whose values do not change (an elasticity matrix) is then
+    summed once, not at every Newton iteration, and the sums are those of :meth:`fill` bit for bit
+    as long as the blocks are added in their order.
     """
 
     pattern: Pattern
     keep: tuple
+    starts: tuple = ()
 
     @classmethod
     def build(cls, blocks, shape, row_local: np.ndarray | None = None, col_map: np.ndarray | None = None,
@@ -108,13 +115,33 @@ class BlockPattern:
         rows_out = shape[0] if row_local is None else int(n_rows)
         pat = Pattern.build(np.concatenate(R) if R else np.zeros(0, np.int64),
                             np.concatenate(C) if C else np.zeros(0, np.int64), (rows_out, shape[1]))
-        return cls(pat, tuple(keep))
+        starts = tuple(int(v) for v in np.concatenate([[0], np.cumsum([r.size for r in R], dtype=np.int64)]))
+        return cls(pat, tuple(keep), starts)
 
     def take(self, block: int, values: np.ndarray) -> np.ndarray:
         """The kept entries of one block's full (raveled) value list."""
         v = np.asarray(values, float).ravel()
         k = self.keep[block]
         return v if k is None else v[k]
+
+    def zeros(self) -> np.ndarray:
+        """(nnz,) zero data of the pattern, to :meth:`add` blocks into."""
+        return np.zeros(self.pattern.nnz)
+
+    def add(self, data: np.ndarray, block: int, values: np.ndarray) -> np.ndarray:
+        """Add one block's kept values (k_b,) into ``data`` (nnz,) in place, each contribution in
+        its order (``np.add.at``: the running sums of :meth:`fill`'s bincount); returns ``data``."""
+        v = np.asarray(values, float).ravel()
+        a, b = self.starts[block], self.starts[block + 1]
+        if v.size != b - a:
+            raise ValueError(f"block {block}: {v.size} values for {b - a} kept contributions")
+        np.add.at(data, self.pattern.slot[a:b], v)
+        return data
+
+    def matrix(self, data: np.ndarray) -> sp.csr_array:
+        """csr array (n_rows, n_cols) on the pattern with the given data (nnz,), not copied."""
+        p = self.pattern
+        return sp.csr_array((data, p.indices, p.indptr), shape=p.shape)
 
     def fill(self, values) -> sp.csr_array:
         """csr array (n_rows, n_cols) from every block's kept values (a sequence, block order)."""

@@ -371,8 +371,9 @@ class Poromechanics:
         self._dil = (J.row, J.data, dkeep)
         blocks.append((po + np.broadcast_to(frow[:, None], dkeep.shape)[dkeep], fcol[dkeep]))
         self.pattern = pat = jacobian_pattern(blocks, n, self.layout)
-        self._a_vals = pat.take(0, values[0])
-        self._bt_vals = pat.take(1, values[1])
+        # the elasticity and multiplier blocks never change: summed once into the Jacobian's data
+        # (the blocks of a step at its start, the contact blocks at each iteration: _linearise)
+        self._j_fixed = pat.add(pat.add(pat.zeros(), 0, pat.take(0, values[0])), 1, pat.take(1, values[1]))
         it = np.int32 if n < 2**31 - 1 else np.int64
         self._g_u = (pat.take(4, G.data[kg]), gc[kg].astype(it))      # values (m^d), p column
         self._g_p = (pat.take(5, T.data[kt]), tr[kt].astype(it))      # values (m^d), p row
@@ -621,7 +622,7 @@ class Poromechanics:
 
     def _linearise(self, x, ctx) -> Linearisation:
         mech, d, nf = self.mech, self.dim, self.n_ff
-        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, (g_u, g_p), af_vals, (abs_A, terms_old) = ctx
+        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, _, (abs_A, terms_old) = ctx
         u, lam, p = self._split(x, udir, p_dir, s)
         q = (mech.Jv @ u).reshape(nf, d)
         C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, q, q - q_old, mech.normal, mech.face_area)
@@ -650,8 +651,11 @@ class Poromechanics:
         jrow, jval, keep = self._cu
         cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
         pat = self.pattern
-        Jac = pat.fill([self._a_vals, self._bt_vals, pat.take(2, cu), pat.take(3, dC_dlam * (b * b)[:, None, None]),
-                        -cs * g_u, -g_p, -af_vals, pat.take(7, dil_vals)])
+        # blocks in pattern order 2, 3, then 7 after the step's 4–6: the sums of pat.fill bit for bit
+        data = pat.add(j_step.copy(), 2, pat.take(2, cu))
+        pat.add(data, 3, pat.take(3, dC_dlam * (b * b)[:, None, None]))
+        Jac = pat.matrix(pat.add(data, 7, pat.take(7, dil_vals)))
+        del data
         if self.layout is not None:
             Jac = OwnedRows(Jac, self.layout)
         free, ff = mech.free, self.flow_free
@@ -705,7 +709,14 @@ class Poromechanics:
         terms_old = abs_A @ np.abs(old.p) + np.abs(r_dt) + self._abs_GT @ np.abs(u_old)
         if self.n_ff and np.any(self.tan_psi > 0):
             terms_old[self.dofs.frac] += mech.face_area * self.tan_psi * self._tangential_slip(q_old)[0]
-        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, g_vals, af_vals, (abs_A, terms_old))
+        # the Jacobian's data without the contact blocks (2, 3, 7, added per iteration by _linearise):
+        # the fixed blocks and the step's coupling and flow blocks; no block of 2–3 shares an entry
+        # with 4–6 (contact rows against displacement and pressure rows), so adding 4–6 before them
+        # gives pat.fill's sums bit for bit
+        pat, cs = self.pattern, self._coupling_sign
+        j_step = pat.add(pat.add(pat.add(self._j_fixed.copy(), 4, -cs * g_vals[0]), 5, -g_vals[1]), 6, -af_vals)
+        del g_vals, af_vals
+        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, None, (abs_A, terms_old))
         x0 = np.concatenate([u_old[mech.free], (old.lam / mech.law.beta[:, None]).ravel(), old.p[self.flow_free] / sf])
         return ctx, x0
 
