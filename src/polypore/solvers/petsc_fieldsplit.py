@@ -61,6 +61,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..core.errors import InputError, RunError
+from ..core.memory import trim_heap
 from .block_contact import ContactCondensation, _diag_blocks
 from .distributed import OwnedRows, _mpi, context, layout_for
 from .petsc import (AMG_KINDS, FIELD, KrylovDriver, PetscStats, ReusePolicy, aij, amg_defaults, collect_garbage,
@@ -769,6 +770,7 @@ class PetscBlockPoroSolver(_FieldSplitBase):
             if new_step:
                 self._lump = lumped_coupling(R, blk)
                 self._fkey = fkey
+                trim_heap()         # its temporaries, before PETSc's set-ups allocate (core/memory.py)
         if self.structure == "condensed":
             self._condensed(R, blk, new, self._lump, *self._prefixes)
         else:
