@@ -32,7 +32,6 @@ import numpy as np
 import scipy.sparse as sp
 
 from .petsc import aij, near_nullspace, petsc
-from .timing import SPLIT
 
 
 def field_index(blk) -> tuple[np.ndarray, np.ndarray]:
@@ -235,34 +234,34 @@ class CondensedPreconditioner:
 
     def setUp(self, pc):
         """The AMG set-ups: S_uu at every PCSetUp, S_pp at the first of a time step (Ŝ_p changes with
-        the step only, as BlockPoroSolver's _PressureSolve keeps it)."""
-        with SPLIT.timed("preconditioner"):
-            if self.ku is None:
-                if self.nsp_u is not None:
-                    self.Suu.mat.setNearNullSpace(self.nsp_u)
-                self.ku = self._ksp(self.prefix_u, self.Suu.mat)
-                self.ku.setFromOptions()
-                if self.has_p:
-                    self.kp = self._ksp(self.prefix_p, self.Spp.mat)
-                    self.kp.setFromOptions()
-                self._vecs = self._work()
-            # KSPSetUp does nothing once set up: the values changed in place would be taken up at
-            # the next solve, inside the Krylov iterations; PCSetUp takes them up here
-            self.ku.setUp()
-            self.ku.getPC().setUp()
-            if self.kp is not None:
-                if self.new_step and self.pressure_nullspace is not None:
-                    old, self._nsp_p = self._nsp_p, near_nullspace(self.pressure_nullspace, self.comm)
-                    self.Spp.mat.setNearNullSpace(self._nsp_p)
-                    if old is not None:
-                        old.destroy()
-                self.kp.getPC().setReusePreconditioner(not self.new_step)
-                self.kp.setUp()
-                self.kp.getPC().setUp()
-                if self.new_step:
-                    if self.on_pressure_build is not None:
-                        self.on_pressure_build()
-                    self.new_step = False
+        the step only, as BlockPoroSolver's _PressureSolve keeps it). Called inside the KSP's set-up,
+        which the Krylov driver times as "preconditioner"."""
+        if self.ku is None:
+            if self.nsp_u is not None:
+                self.Suu.mat.setNearNullSpace(self.nsp_u)
+            self.ku = self._ksp(self.prefix_u, self.Suu.mat)
+            self.ku.setFromOptions()
+            if self.has_p:
+                self.kp = self._ksp(self.prefix_p, self.Spp.mat)
+                self.kp.setFromOptions()
+            self._vecs = self._work()
+        # KSPSetUp does nothing once set up: the values changed in place would be taken up at
+        # the next solve, inside the Krylov iterations; PCSetUp takes them up here
+        self.ku.setUp()
+        self.ku.getPC().setUp()
+        if self.kp is not None:
+            if self.new_step and self.pressure_nullspace is not None:
+                old, self._nsp_p = self._nsp_p, near_nullspace(self.pressure_nullspace, self.comm)
+                self.Spp.mat.setNearNullSpace(self._nsp_p)
+                if old is not None:
+                    old.destroy()
+            self.kp.getPC().setReusePreconditioner(not self.new_step)
+            self.kp.setUp()
+            self.kp.getPC().setUp()
+            if self.new_step:
+                if self.on_pressure_build is not None:
+                    self.on_pressure_build()
+                self.new_step = False
 
     def _work(self):
         xu, zu = self.Suu.mat.createVecs()
