@@ -196,7 +196,9 @@ def main(argv=None):
     ph.wrap(mmech.ContactMechanics, "linearise", "residual + Jacobian (contact)")
     for cls in (fs.PetscBlockPoroSolver, fs.PetscBlockContactSolver):
         ph.wrap(cls, "solve", f"{cls.__name__}.solve (all)")
-    ph.wrap(fs._FieldSplitBase, "_matrices", "  P pattern/values + PETSc J, P (conversion)")
+    ph.wrap(fs._FieldSplitBase, "_matrices", "  P pattern/values + PETSc J, P (fieldsplit)")
+    ph.wrap(fs._FieldSplitBase, "_condensed", "  S_uu, S_pp, S_pu, Bt Cl̂⁻¹Cû + PETSc J (condensed)")
+    ph.wrap(fs, "lumped_coupling", "  lumped coupling of Ŝ_p (new step)")
     ph.wrap(fs, "modified_contact_blocks", "  Cl̂, Cû (modified contact blocks)")
     ph.wrap(spetsc.KrylovDriver, "_setup", "  PCSetUp")
     ph.wrap(spetsc.KrylovDriver, "_krylov", "  KSPSolve")
