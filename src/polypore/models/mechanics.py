@@ -28,7 +28,7 @@ from ..discretisation import DisplacementSpace, Operators, QuadraticOperators, Q
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
 from ..solvers.distributed import OwnedRows, RowBlock, local_rows, min_owner, owned_layout, register_layout
-from ..solvers.linear import LinearSolver
+from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import LAWS, OPEN, SLIP, STICK, ContactLaw, linearise_contact
 
@@ -417,6 +417,11 @@ class ContactMechanics:
         blocks = [(fr[ka], fc[ka]), (Bt.row, nfree + Bt.col), (nfree + rows[keep], fcol[keep]),
                   (nfree + lr, nfree + lc)]
         return blocks, [A.data[ka], bt_vals, None, None]
+
+    def release_solver(self) -> None:
+        """Free the linear solver's matrices and set-ups once no solve follows
+        (:func:`~polypore.solvers.linear.release_solver`)."""
+        release_solver(self.solver)
 
     def release_assembly(self) -> None:
         """Free the Jacobian's pattern and fixed values (the coupled model needs them for its

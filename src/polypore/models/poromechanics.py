@@ -64,7 +64,7 @@ from ..core.errors import InputError, RunError
 from ..core.memory import trim_heap
 from ..mesh import FracturedMesh
 from ..solvers.distributed import OwnedRows, RowBlock, local_rows, owned_layout, register_layout
-from ..solvers.linear import LinearSolver
+from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from ..solvers.petsc import shared
 from .contact import OPEN, SLIP, STICK, linearise_contact
@@ -396,11 +396,8 @@ class Poromechanics:
     def release_solver(self) -> None:
         """Free the linear solver's matrices and preconditioner set-ups (PETSc's, where it has any)
         and return the freed heap: after the last step, before the outputs. A later step sets the
-        solver up again."""
-        release = getattr(self.solver, "release", None)
-        if release is not None:
-            release()
-        trim_heap()
+        solver up again (:func:`~polypore.solvers.linear.release_solver`)."""
+        release_solver(self.solver)
 
     def dof_owner(self, part: np.ndarray) -> np.ndarray:
         """(n_unknowns,) owner rank of every step unknown [free u, λ̃, free pressures] for the cell
@@ -564,8 +561,8 @@ class Poromechanics:
             # the contact Jacobian's pattern, and the contact solver's PETSc matrices and AMG, are
             # not needed by the steps
             mech.release_assembly()
-            if mech.solver is not self.solver and hasattr(mech.solver, "release"):
-                mech.solver.release()
+            if mech.solver is not self.solver:
+                mech.release_solver()
         else:
             u = np.asarray(mech.interpolate(u0, t0) if callable(u0) else u0, float).reshape(-1, d)
             lam = np.zeros((self.n_ff, d))
@@ -622,7 +619,7 @@ class Poromechanics:
 
     def _linearise(self, x, ctx) -> Linearisation:
         mech, d, nf = self.mech, self.dim, self.n_ff
-        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, _, (abs_A, terms_old) = ctx
+        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old) = ctx
         u, lam, p = self._split(x, udir, p_dir, s)
         q = (mech.Jv @ u).reshape(nf, d)
         C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, q, q - q_old, mech.normal, mech.face_area)
@@ -716,7 +713,7 @@ class Poromechanics:
         pat, cs = self.pattern, self._coupling_sign
         j_step = pat.add(pat.add(pat.add(self._j_fixed.copy(), 4, -cs * g_vals[0]), 5, -g_vals[1]), 6, -af_vals)
         del g_vals, af_vals
-        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, None, (abs_A, terms_old))
+        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old))
         x0 = np.concatenate([u_old[mech.free], (old.lam / mech.law.beta[:, None]).ravel(), old.p[self.flow_free] / sf])
         return ctx, x0
 

@@ -41,6 +41,7 @@ def solve_static(case: CaseFile):
     problem = ContactMechanics(fm, setup.data, setup.solver, setup.newton)
     t2 = time.perf_counter()
     st = problem.solve()
+    problem.release_solver()            # no solve follows (ContactMechanics.release_solver)
     t3 = time.perf_counter()
     errors = {}
     if isinstance(setup.exact, PiecewiseSolution):

@@ -11,8 +11,9 @@ Backends
 ``petsc``    PETSc through petsc4py (extra ``mpi`` + Debian's petsc4py, docs/parallel.md): CG
              (symmetric) or GMRES with GAMG or BoomerAMG, tuned by PETSc options
              (``petsc_options``); on N ranks each rank passes its rows (:mod:`.petsc`).
-``block-petsc`` the block preconditioners of ``block-amg`` with PETSc's PCFIELDSPLIT
-             (:mod:`.petsc_fieldsplit`); the model builds it.
+``block-petsc`` the block preconditioners of ``block-amg`` in PETSc (multipliers condensed by
+             polypore, :mod:`.petsc_condensed`, or PCFIELDSPLIT, :mod:`.petsc_fieldsplit`); the
+             model builds it.
 ``auto``     pardiso if installed, else superlu.
 
 In Newton's loops only the block backends take per-iteration targets (row weights and the
@@ -32,11 +33,24 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..core.errors import InputError, RunError
+from ..core.memory import trim_heap
 from .timing import SPLIT
 
 log = logging.getLogger("polypore")
 
 BACKENDS = ("auto", "superlu", "pardiso", "amg", "block-amg", "petsc", "block-petsc")
+
+
+def release_solver(solver) -> None:
+    """Free a solver's matrices and preconditioner set-ups (the PETSc solvers' ``release``; the
+    others hold nothing to free) and return the freed heap, once no solve follows. On N ranks every
+    rank calls this at the same point, so the collective destroys happen while PETSc runs: a
+    block-petsc solver left to the interpreter's teardown was destroyed after PETSc's finalisation
+    and crashed a 2-rank static run at exit."""
+    release = getattr(solver, "release", None)
+    if release is not None:
+        release()
+    trim_heap()
 
 
 @contextlib.contextmanager

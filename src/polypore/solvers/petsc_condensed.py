@@ -126,9 +126,9 @@ class CondensedPreconditioner:
         self._nsp_p = None
 
     # ---- structure (once per pattern of J) --------------------------------------------------
-    def build(self, R: sp.csr_matrix, lpattern: sp.csr_matrix | None):
+    def build(self, R: sp.csr_matrix, lpattern: sp.csr_matrix):
         """Patterns of every block from this rank's rows R (csr, canonical) and the fixed pattern of
-        the contact rows' displacement part (``lpattern``, nl_local × n, or None without multipliers).
+        the contact rows' displacement part (``lpattern``, nl_local × n; no rows without multipliers).
         """
         blk = self.blk
         nu, po, nr, n = blk.nu, blk.po, blk.n_rows, blk.n
@@ -185,10 +185,10 @@ class CondensedPreconditioner:
         f = r // d
         self._ef, self._ei = f, r % d
         self._src = L.indptr[f[:, None] * d + np.arange(d)[None, :]] + j[:, None]
-        self._lkeys = _keys_of(L)
+        self._lkeys = csr_keys(L.indptr, L.indices, L.shape[1])
 
     # ---- values (every Newton system) ---------------------------------------------------------
-    def update(self, R: sp.csr_matrix, Clhat: np.ndarray | None, Cu: sp.csr_matrix | None, lump):
+    def update(self, R: sp.csr_matrix, Clhat: np.ndarray, Cu: sp.csr_matrix, lump):
         """Refill every block from this rank's rows R, the modified contact blocks (Clhat (nfl, d, d),
         Cu (nl_local × n csr, a sub-pattern of the build's)) and the lumped coupling (n_p_local,) or
         None."""
@@ -198,7 +198,7 @@ class CondensedPreconditioner:
         if self.has_l:
             self.inv = np.linalg.inv(Clhat) if len(Clhat) else np.zeros((0, self.d, self.d))
             cu = np.zeros(len(self._lkeys))
-            cu[np.searchsorted(self._lkeys, _keys_of(Cu))] = Cu.data
+            cu[np.searchsorted(self._lkeys, csr_keys(Cu.indptr, Cu.indices, Cu.shape[1]))] = Cu.data
             mvals = np.einsum("ek,ek->e", self.inv[self._ef, self._ei, :], cu[self._src])
             Mm = self.M.to_petsc(mvals, self.comm)
             Bm = self.Bt.to_petsc(self.Bt.values(R.data[bid == 3]), self.comm)
@@ -327,6 +327,8 @@ class CondensedPreconditioner:
             self._nsp_p = None
 
 
-def _keys_of(A: sp.csr_matrix) -> np.ndarray:
-    rows = np.repeat(np.arange(A.shape[0], dtype=np.int64), np.diff(A.indptr))
-    return rows * A.shape[1] + A.indices.astype(np.int64)
+def csr_keys(indptr, indices, ncols: int, row0: int = 0) -> np.ndarray:
+    """(nnz,) int64 row-major keys (row0 + row)·ncols + col of a CSR pattern (sorted when it is
+    canonical): to find one pattern's entries in another by ``np.searchsorted``."""
+    rows = np.repeat(np.arange(len(indptr) - 1, dtype=np.int64), np.diff(indptr)) + row0
+    return rows * ncols + indices.astype(np.int64)

@@ -66,7 +66,7 @@ from .block_contact import ContactCondensation, _diag_blocks
 from .distributed import OwnedRows, _mpi, context, layout_for
 from .petsc import (AMG_KINDS, FIELD, KrylovDriver, PetscStats, ReusePolicy, aij, amg_defaults, collect_garbage,
                     interleaved_block_size, krylov_defaults, near_nullspace, petsc, petsc_options, vec)
-from .petsc_condensed import CondensedPreconditioner
+from .petsc_condensed import CondensedPreconditioner, csr_keys as _keys
 from .timing import SPLIT
 
 log = logging.getLogger("polypore")
@@ -98,11 +98,6 @@ def _modified(cond: ContactCondensation, Cl_blocks: np.ndarray, Cu):
     Gm = sp.csr_matrix((g.ravel(), (np.arange(nf * d), np.repeat(np.arange(nf), d))), shape=(nf * d, nf))
     Cu_s = (sp.csr_matrix(Cu) - Gm @ (N @ Cu)).tocsr()
     return Clhat, Cu_s
-
-
-def _keys(indptr, indices, ncols, row0=0):
-    rows = np.repeat(np.arange(len(indptr) - 1, dtype=np.int64), np.diff(indptr)) + row0
-    return rows * ncols + indices.astype(np.int64)
 
 
 class _RowBlocks:
@@ -414,7 +409,7 @@ class _FieldSplitBase:
                 if self._cpc is not None:
                     self._cpc.destroy()
                 self._cpc = CondensedPreconditioner(blk, self.d, prefix_u, prefix_p, self.bs_u, None,
-                                                    on_pressure_build=self._pressure_built)
+                                                    on_pressure_build=self._pressure_built if prefix_p else None)
                 self._cpc.build(R, contact_pattern(R, blk, self.d))
             self._cpc.update(R, Clhat, Cu, lump)
             del Clhat, Cu
@@ -426,7 +421,7 @@ class _FieldSplitBase:
         self.driver.stats.convert_seconds += time.perf_counter() - t0
 
     def _pressure_built(self):
-        self.pressure_builds = getattr(self, "pressure_builds", 0) + 1
+        self.pressure_builds += 1
 
     def _forcing(self, target):
         """Newton's forcing term (a KrylovTarget, or None: ``rtol``) as the KSP's rtol of this solve.
@@ -466,9 +461,8 @@ class _FieldSplitBase:
         self._new_step = new_step
         if cpc is not None:
             cpc.new_step = cpc.new_step or new_step
-            pns = getattr(self, "pressure_nullspace", None)
-            if cpc.has_p and pns is not None and (new or new_step):
-                cpc.pressure_nullspace = self._rows(np.asarray(pns, float), np.arange(po, n))
+            if cpc.has_p and self.pressure_nullspace is not None and (new or new_step):
+                cpc.pressure_nullspace = self._rows(np.asarray(self.pressure_nullspace, float), np.arange(po, n))
         lay = self._lay
         b = vec(rhs if lay is None else lay.local(rhs))
         x = self._Jm.createVecRight()
