@@ -36,6 +36,9 @@ OPEN, STICK, SLIP = 0, 1, 2
 # itself is unchanged (continuous across the cone); only the derivative chosen inside the band is.
 STICK_SLIP_TIE = 1e-8
 STATE_NAMES = ("open", "stick", "slip")
+# default smallest |P| / A_K of a multiplier patch (discretisation/contact_patches.py; chosen by
+# measurement on corner-point faults, docs/contact_patches.md)
+PATCH_RATIO = 0.2
 
 
 @dataclass(frozen=True, eq=False)

@@ -148,19 +148,21 @@ def step_energy(model, old, new) -> EnergyTerms:
     d_stab = 0.5 * float(ws @ ((jn - j0) * (jn + j0)))
     num += 0.5 * float(ws @ ((jn - j0) ** 2))
     scale += float(ws @ (jn * jn + j0 * j0))
-    # -- contact: friction on the slip increment, normal work, tangential excess
+    # -- contact: friction on the slip increment, normal work, tangential excess, per multiplier
+    # (patch, discretisation/contact_patches.py): Σ_P |P| λ_P·Δ[[u]]_P = Σ_σ |σ| λ_σ·Δ[[u]]_σ
     fric = cn = xt = 0.0
     if nf:
-        n = mech.normal
-        area = mech.face_area
-        dq = (mech.Jv @ du).reshape(nf, d)
+        n = mech.c_normal
+        area = mech.c_area
+        nc = mech.n_c
+        dq = (mech.Jcv @ du).reshape(nc, d)
         dqn = np.einsum("fi,fi->f", dq, n)
         dqt = dq - dqn[:, None] * n
-        lam = new.lam
+        lam = mech.patch_values(new.lam)
         ln = np.einsum("fi,fi->f", lam, n)
         lt = lam - ln[:, None] * n
         law = mech.law
-        r = {"coulomb": law.friction * np.maximum(ln, 0.0), "tresca": law.threshold}.get(law.kind, np.zeros(nf))
+        r = {"coulomb": law.friction * np.maximum(ln, 0.0), "tresca": law.threshold}.get(law.kind, np.zeros(nc))
         slip = np.linalg.norm(dqt, axis=1)
         fric = float(np.sum(area * r * slip))
         cn = float(np.sum(area * ln * dqn))
@@ -169,7 +171,7 @@ def step_energy(model, old, new) -> EnergyTerms:
     # -- mechanical work: loads at t^n on δu, Dirichlet reactions (physical coupling −G p)
     F = model.load_vector(t)
     Gp = model.G @ new.p
-    Bl = mech.Bv.T @ new.lam.ravel()
+    Bl = mech.Bcv.T @ mech.patch_values(new.lam).ravel()
     R = Au + Bl - Gp - F
     fixed = mech.fixed
     load_w = float(F @ du)

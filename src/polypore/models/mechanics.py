@@ -25,12 +25,13 @@ from ..assembly.pattern import BlockPattern
 from ..core.errors import InputError
 from ..core.memory import trim_heap
 from ..discretisation import DisplacementSpace, Operators, QuadraticOperators, QuadraticSpace
+from ..discretisation.contact_patches import contact_patches
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
 from ..solvers.distributed import OwnedRows, RowBlock, local_rows, min_owner, owned_layout, register_layout
 from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
-from .contact import LAWS, OPEN, SLIP, STICK, ContactLaw, linearise_contact
+from .contact import LAWS, OPEN, PATCH_RATIO, SLIP, STICK, ContactLaw, linearise_contact
 
 log = logging.getLogger("polypore")
 
@@ -65,6 +66,8 @@ class ContactSpec:
     threshold: np.ndarray | float = 0.0
     beta_scale: float = 1.0
     initial: str = "closed"   # first Newton iterate: "closed" (bonded, always solvable) or "open" (λ = 0)
+    # smallest |P| / A_K of a multiplier patch (discretisation/contact_patches.py); 0: one per face
+    patch_ratio: float = PATCH_RATIO
 
 
 @dataclass(frozen=True)
@@ -229,16 +232,29 @@ class ContactMechanics:
         self.n_dofs = self.space.n_dofs
         g = mesh.geometry
         self.face_area = g.face_area[net.faces]
-        self.normal = net.normal
         self.n_ff = net.n_faces
-        # jump as a vector operator (n_ff*d, n_dofs) and the equilibrium coupling B = |σ| [[·]]
-        J = self.ops.jump.tocoo()
-        self.jump_scalar = self.ops.jump
-        rows = (J.row[:, None].astype(np.int64) * d + np.arange(d)).ravel()
-        cols = (J.col[:, None].astype(np.int64) * d + np.arange(d)).ravel()
-        vals = np.repeat(J.data, d)
-        self.Jv = sp.csr_array((vals, (rows, cols)), shape=(self.n_ff * d, self.n_dofs))
-        self.Bv = sp.csr_array((vals * np.repeat(self.face_area[J.row], d), (rows, cols)), shape=self.Jv.shape)
+        # the multipliers live on patches of faces (one per face unless faces are slivers,
+        # discretisation/contact_patches.py): the contact rows use the patch-mean jumps
+        if not data.contact.patch_ratio >= 0:
+            raise InputError("contact.patch_ratio", f"must be ≥ 0, got {data.contact.patch_ratio!r}")
+        self.patches = P = contact_patches(fm, data.contact.patch_ratio)
+        self.n_c = P.n
+        self.c_area, self.c_normal = P.area, P.normal
+        self.c_jump = self.ops.jump if P.identity else sp.csr_array(P.mean @ self.ops.jump)
+        # per face, the jump and normal of its patch: within a patch only the mean jump is
+        # controlled (by the patch's multiplier), so the aperture, the fracture-pressure coupling
+        # and the outputs take that one; then Σ_σ |σ| λ_σ·[[v]]_σ = Σ_P |P| λ_P·[[v]]_P with
+        # λ_σ = λ_P(σ), and the coupling's adjointness (energy identity, models/energy.py) holds
+        if P.identity:
+            self.jump_scalar, self.normal = self.ops.jump, net.normal
+        else:
+            E = sp.csr_array((np.ones(self.n_ff), (np.arange(self.n_ff), P.face_patch)), shape=(self.n_ff, P.n))
+            self.jump_scalar, self.normal = sp.csr_array(E @ self.c_jump), P.expand(P.normal)
+        # jump as a vector operator (n_ff*d, n_dofs) and the equilibrium coupling B = |σ| [[·]], per
+        # face and per patch (the same coupling: Bᵀ λ_face = B_cᵀ λ_P)
+        self.Jv, self.Bv = _vector_jump(self.jump_scalar, self.face_area, self.n_dofs, d)
+        self.Jcv, self.Bcv = (self.Jv, self.Bv) if P.identity else _vector_jump(self.c_jump, P.area, self.n_dofs, d)
+        J = self.c_jump.tocoo()
         self._face_means = {}          # traction boundaries: face-mean operators (order 2: face quadratures)
         self._setup_dirichlet()
         self._setup_contact()
@@ -258,8 +274,9 @@ class ContactMechanics:
             register_layout(self.solver, self.layout)
         trim_heap()                 # the set-up's temporaries (core/memory.py)
         self.seconds_setup = time.perf_counter() - t0
-        log.info("mechanics: order %d, %d displacement dofs (%d free), %d multipliers, %s bubbles; set up in %.2f s",
-                 self.order, self.n_dofs, self.free.size, self.n_ff * d,
+        log.info("mechanics: order %d, %d displacement dofs (%d free), %d multipliers (%d faces in %s), %s bubbles; "
+                 "set up in %.2f s", self.order, self.n_dofs, self.free.size, self.n_c * d, self.n_ff,
+                 "their own patches" if P.identity else f"{self.n_c} patches",
                  "two-sided" if data.two_sided else "one-sided", self.seconds_setup)
 
     def block_solver(self, rtol: float = 1e-8, rho: float = 0.1, petsc: bool = False, options=None):
@@ -280,7 +297,7 @@ class ContactMechanics:
         """Contact-row data for the block preconditioners: c_σ = |σ| β_σ (the scaled rows), n⁺."""
         from ..solvers.block_contact import ContactCondensation
 
-        return ContactCondensation(self.face_area * self.law.beta, self.normal, rho)
+        return ContactCondensation(self.c_area * self.law.beta, self.c_normal, rho)
 
     def rigid_modes(self) -> np.ndarray:
         """(n_free, 3 or 6) rigid motions of the free displacement dofs (bubbles zero)."""
@@ -308,10 +325,10 @@ class ContactMechanics:
         return np.maximum(own, 0)
 
     def dof_owner(self, part: np.ndarray) -> np.ndarray:
-        """(n_free + n_ff d,) owner rank of every Newton unknown [free u, λ̃]: a slot's for its
-        components, the + side cell's for a fracture face's multipliers."""
+        """(n_free + n_c d,) owner rank of every Newton unknown [free u, λ̃]: a slot's for its
+        components, the + side cell's of its largest face for a patch's multipliers."""
         u = np.repeat(self.slot_owner(part), self.dim)[self.free]
-        lam = np.repeat(part[self.fm.network.plus_cell], self.dim)
+        lam = np.repeat(part[self.patches.plus_cell], self.dim)
         return np.concatenate([u, lam])
 
     # ---- set-up -------------------------------------------------------------------------
@@ -367,15 +384,18 @@ class ContactMechanics:
         c = self.data.contact
         if c.law not in LAWS:
             raise InputError("contact.law", f"unknown contact law {c.law!r}; allowed: {', '.join(LAWS)}")
-        net = self.fm.network
-        g = self.fm.mesh.geometry
-        kp = net.plus_cell
+        P = self.patches
+        kp = P.plus_cell
         if not c.beta_scale > 0:
             raise InputError("contact.beta", f"must be positive, got {c.beta_scale!r}")
-        beta = c.beta_scale * (2 * self.mu[kp] + self.lam[kp]) / g.face_diameter[net.faces]
-        F = np.broadcast_to(np.asarray(c.friction, float), (self.n_ff,)).copy()
-        gthr = np.broadcast_to(np.asarray(c.threshold, float), (self.n_ff,)).copy()
-        self.law = ContactLaw(c.law, F, gthr, beta)
+        beta = c.beta_scale * (2 * self.mu[kp] + self.lam[kp]) / P.diameter
+        # per patch: the area-weighted means of the faces' coefficients (equal on a fracture's
+        # faces unless given as fields)
+        F = np.broadcast_to(np.asarray(c.friction, float), (self.n_ff,))
+        gthr = np.broadcast_to(np.asarray(c.threshold, float), (self.n_ff,))
+        if not P.identity:
+            F, gthr = P.mean @ F, P.mean @ gthr
+        self.law = ContactLaw(c.law, np.array(F, float), np.array(gthr, float), beta)
 
     def jacobian_blocks(self, J) -> tuple[list, list]:
         """The (row, col) lists of the Newton Jacobian's mechanical blocks in the numbering of the
@@ -383,11 +403,11 @@ class ContactMechanics:
 
         Blocks, in order: A (free rows and columns; on N ranks only this rank's rows, from the rows
         of A it keeps), Bᵀ (u rows, λ̃ columns), C_u (contact rows, u columns: one d × d entry
-        per jump entry whose slot is free, selected by ``self._cu``'s mask), C_λ (d × d per face).
+        per jump entry whose slot is free, selected by ``self._cu``'s mask), C_λ (d × d per patch).
 
         Parameters
         ----------
-        J : coo (n_ff, n_slots), the scalar jump operator
+        J : coo (n_c, n_slots), the scalar patch-mean jump operator ``c_jump``
 
         Returns
         -------
@@ -395,12 +415,12 @@ class ContactMechanics:
         values : list, the fixed values of A (N/m) and Bᵀ β (N/m), then None, None (C_u and C_λ
             change at every iterate)
         """
-        d, nf, nfree = self.dim, self.n_ff, self.free.size
+        d, nf, nfree = self.dim, self.n_c, self.free.size
         A = local_rows(self.A).tocoo()
         arow = A.row if self.dof_layout is None else self.dof_layout.owned[A.row]
         fr, fc = self.free_index[arow], self.free_index[A.col]
         ka = (fr >= 0) & (fc >= 0)
-        Bt = self.Bv[:, self.free].T.tocoo()
+        Bt = self.Bcv[:, self.free].T.tocoo()
         # Newton works on λ̃ = λ/β (a length, like u) with the contact rows multiplied by β: the
         # Jacobian then has blocks of one scale (~ μ h^{d-2}) instead of μ, |σ| and |σ|/β, which
         # would cost the direct solver ~8 digits
@@ -431,7 +451,7 @@ class ContactMechanics:
     def _setup_pattern(self, J):
         """All (row, col) contributions of the Newton Jacobian, restricted to free dofs, built once
         (on N ranks: this rank's rows, distributed numbering)."""
-        n = self.free.size + self.n_ff * self.dim
+        n = self.free.size + self.n_c * self.dim
         blocks, values = self.jacobian_blocks(J)
         self.pattern = jacobian_pattern(blocks, n, self.layout)
         self._fixed_vals = np.concatenate([self.pattern.take(k, values[k]) for k in (0, 1)])
@@ -488,23 +508,34 @@ class ContactMechanics:
 
     # ---- Newton ----------------------------------------------------------------------------
     def _split(self, x, udir):
+        """(u (n_dofs,), λ (n_c, d) per patch, Pa) of a Newton vector."""
         nfree = self.free.size
         u = udir.copy()
         u[self.free] = x[:nfree]
-        lam = x[nfree:].reshape(self.n_ff, self.dim) * self.law.beta[:, None]
+        lam = x[nfree:].reshape(self.n_c, self.dim) * self.law.beta[:, None]
         return u, lam
 
+    def patch_values(self, face_values: np.ndarray) -> np.ndarray:
+        """(n_c, ...) patch means of face values (n_ff, ...) (the values themselves on faces
+        that are their own patch)."""
+        return face_values if self.patches.identity else self.patches.mean @ face_values
+
+    def face_values(self, patch_values: np.ndarray) -> np.ndarray:
+        """(n_ff, ...) the value of each face's patch."""
+        return patch_values if self.patches.identity else self.patches.expand(patch_values)
+
     def linearise(self, x, F, udir, q_old=None) -> Linearisation:
-        d, nf = self.dim, self.n_ff
+        """Residual and Jacobian at x; ``q_old`` (n_c, d) the patch jumps of the previous step."""
+        d, nf = self.dim, self.n_c
         u, lam = self._split(x, udir)
-        q = (self.Jv @ u).reshape(nf, d)
+        q = (self.Jcv @ u).reshape(nf, d)
         s = q if q_old is None else q - q_old
-        C, dC_dlam, dC_dq, state = linearise_contact(self.law, lam, q, s, self.normal, self.face_area)
-        Au, Bl = self.A @ u, self.Bv.T @ lam.ravel()          # A: a RowBlock on N ranks (gathered)
+        C, dC_dlam, dC_dq, state = linearise_contact(self.law, lam, q, s, self.c_normal, self.c_area)
+        Au, Bl = self.A @ u, self.Bcv.T @ lam.ravel()          # A: a RowBlock on N ranks (gathered)
         Ru = Au + Bl - F
         Ru_f = Ru[self.free]
         if self.pattern is None:
-            self._setup_pattern(self.ops.jump.tocoo())
+            self._setup_pattern(self.c_jump.tocoo())
         jrow, jval, keep = self._cu
         b = self.law.beta
         pat = self.pattern
@@ -515,8 +546,8 @@ class ContactMechanics:
         # scales: the work-conjugate size of each block (energy-norm scaling)
         # (A u over all dofs includes the Dirichlet reactions, the load of a purely kinematic case)
         su = max(np.linalg.norm(F), np.linalg.norm(Au), np.linalg.norm(Bl), 1e-300)
-        sc = max(np.linalg.norm(self.face_area[:, None] * q), np.linalg.norm((self.face_area / self.law.beta)[:, None]
-                                                                            * lam), 1e-300)
+        sc = max(np.linalg.norm(self.c_area[:, None] * q), np.linalg.norm((self.c_area / self.law.beta)[:, None]
+                                                                          * lam), 1e-300)
         norms = {"equilibrium": float(np.linalg.norm(Ru_f) / su)}
         if nf:
             norms["contact"] = float(np.linalg.norm(C) / sc)
@@ -541,14 +572,12 @@ class ContactMechanics:
         F = self.load_vector(t)
         udir = self.dirichlet_vector(t)
         nfree = self.free.size
-        x0 = np.zeros(nfree + self.n_ff * self.dim)
+        x0 = np.zeros(nfree + self.n_c * self.dim)
         if initial is not None:
             x0[:nfree] = initial.u.ravel()[self.free]
-            x0[nfree:] = (initial.lam / self.law.beta[:, None]).ravel()
+            x0[nfree:] = (self.patch_values(initial.lam) / self.law.beta[:, None]).ravel()
         else:
-            if self.data.contact.initial == "closed":
-                scale = max(np.abs(F).max(initial=0.0), 1e-300)
-                x0[nfree:] = (1e-12 * scale * self.normal / self.law.beta[:, None]).ravel()
+            x0[nfree:] = self.closed_start(F)
         t1 = time.perf_counter()
 
         def incr(dx, x):
@@ -559,10 +588,19 @@ class ContactMechanics:
         res = semismooth_newton(lambda x: self.linearise(x, F, udir, q_old), x0, self.solver, incr, self.newton,
                                 verbose)
         u, lam = self._split(res.x, udir)
-        lin_state = self.linearise(res.x, F, udir, q_old).active_set
-        return MechanicsState(u.reshape(-1, self.dim), lam, lin_state, t, res.iterations, res.residual, res.history,
+        return MechanicsState(u.reshape(-1, self.dim), self.face_values(lam), self.face_values(res.active_set), t,
+                              res.iterations, res.residual, res.history,
                               {"loads": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear,
                                "total": time.perf_counter() - t0})
+
+    def closed_start(self, F: np.ndarray) -> np.ndarray:
+        """(n_c d,) the first iterate's λ̃ = λ/β: every patch closed and stuck under a tiny
+        compression (10⁻¹² of the largest load), whose linearisation is the bonded problem;
+        zero (every patch open) with ``contact.initial = "open"``."""
+        if self.data.contact.initial != "closed":
+            return np.zeros(self.n_c * self.dim)
+        scale = max(np.abs(F).max(initial=0.0), 1e-300)
+        return (1e-12 * scale * self.c_normal / self.law.beta[:, None]).ravel()
 
     # ---- interpolation -------------------------------------------------------------------------
     def interpolate(self, fn: VectorField, t: float = 0.0) -> np.ndarray:
@@ -614,3 +652,15 @@ class ContactMechanics:
         out = np.stack([np.bincount(sides.side_node, weights=st.u[: sides.n_sides, k], minlength=n)
                         for k in range(self.dim)], 1)
         return out / np.maximum(cnt, 1)[:, None]
+
+
+def _vector_jump(J: sp.sparray, area: np.ndarray, n_dofs: int, d: int) -> tuple[sp.csr_array, sp.csr_array]:
+    """The vector forms (n d, n_dofs) of a scalar jump operator J (n, n_slots): J ⊗ I_d and
+    |σ| J ⊗ I_d (the equilibrium coupling B), for n faces or patches of measure ``area``."""
+    J = J.tocoo()
+    rows = (J.row[:, None].astype(np.int64) * d + np.arange(d)).ravel()
+    cols = (J.col[:, None].astype(np.int64) * d + np.arange(d)).ravel()
+    vals = np.repeat(J.data, d)
+    shape = (J.shape[0] * d, n_dofs)
+    return (sp.csr_array((vals, (rows, cols)), shape=shape),
+            sp.csr_array((vals * np.repeat(area[J.row], d), (rows, cols)), shape=shape))

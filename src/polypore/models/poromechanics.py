@@ -210,7 +210,7 @@ class Poromechanics:
         trim_heap()                 # the set-up's temporaries (core/memory.py)
         self.seconds_setup = time.perf_counter() - t0
         log.info("poromechanics: %d free displacement dofs, %d multipliers, %d free pressures; set up in %.2f s",
-                 self.mech.free.size, self.n_ff * self.dim, self.flow_free.size, self.seconds_setup)
+                 self.mech.free.size, self.mech.n_c * self.dim, self.flow_free.size, self.seconds_setup)
 
     # ---- set-up -------------------------------------------------------------------------
     def _setup_coupling(self):
@@ -342,15 +342,14 @@ class Poromechanics:
         (on N ranks: this rank's rows, distributed numbering, :func:`.mechanics.jacobian_pattern`)."""
         mech, d, nf = self.mech, self.dim, self.n_ff
         nfree = mech.free.size
-        nl = nf * d
+        nl = mech.n_c * d
         npf = self.flow_free.size
         po = nfree + nl                                              # offset of the pressures
         n = po + npf
         self.layout = owned_layout(self.fm.mesh, self.dof_owner)    # None serially
-        J = mech.jump_scalar.tocoo()
-        blocks, values = mech.jacobian_blocks(J)                     # A, Bᵀ, C_u, C_λ
+        blocks, values = mech.jacobian_blocks(mech.c_jump.tocoo())   # A, Bᵀ, C_u, C_λ (per patch)
         self._cu = mech._cu
-        keep = self._cu[2]
+        J = mech.jump_scalar.tocoo()                                 # per face: the dilatant aperture
         # G: u rows × p columns (the rows of G this rank keeps), and p rows × u columns from the
         # rows of Gᵀ it keeps: the same values, so that each rank has its rows of both blocks
         G = local_rows(self.G).tocoo()
@@ -367,7 +366,7 @@ class Poromechanics:
         # (jump nonzero, component) whose row and column are unknowns
         fcol = mech.free_index[J.col.astype(np.int64)[:, None] * d + np.arange(d)]       # (nnz, d)
         frow = self.flow_free_index[self.dofs.frac[J.row]] if nf else np.zeros(0, np.int64)
-        dkeep = keep[:, 0, :] & (frow[:, None] >= 0)                  # (nnz, d): one row per face
+        dkeep = (fcol >= 0) & (frow[:, None] >= 0)                    # (nnz, d): one row per face
         self._dil = (J.row, J.data, dkeep)
         blocks.append((po + np.broadcast_to(frow[:, None], dkeep.shape)[dkeep], fcol[dkeep]))
         self.pattern = pat = jacobian_pattern(blocks, n, self.layout)
@@ -500,7 +499,10 @@ class Poromechanics:
         With λ⁰ the reference traction, the equilibrium reads A u + Bᵀ(λ − λ⁰) − G p = ℓ."""
         F = self.mech.load_vector(t)
         if self.n_ff and np.any(self.lam0):
-            F = F + self.mech.Bv.T @ self.lam0.ravel()
+            # λ⁰ as the multiplier space holds it (its patch means): the reference state, u = 0 and
+            # λ = λ⁰, is then an equilibrium of the discrete problem
+            mech = self.mech
+            F = F + mech.Bcv.T @ mech.patch_values(self.lam0).ravel()
         return F
 
     def _tangential_slip(self, q: np.ndarray):
@@ -548,15 +550,13 @@ class Poromechanics:
             F = self.load_vector(t0) + self.G @ p
             udir = mech.dirichlet_vector(t0)
             nfree = mech.free.size
-            x0 = np.zeros(nfree + self.n_ff * d)
-            if mech.data.contact.initial == "closed":
-                scale = max(np.abs(F).max(initial=0.0), 1e-300)
-                x0[nfree:] = (1e-12 * scale * mech.normal / mech.law.beta[:, None]).ravel()
+            x0 = np.zeros(nfree + mech.n_c * d)
+            x0[nfree:] = mech.closed_start(F)
             res = semismooth_newton(lambda x: mech.linearise(x, F, udir, None), x0, mech.solver,
                                     lambda dx, x: float(np.linalg.norm(dx) / max(np.linalg.norm(x + dx), 1e-300)),
                                     NewtonOptions(**{**self.newton.__dict__, "label": "initial equilibrium"}), verbose)
             u, lam = mech._split(res.x, udir)
-            state = mech.linearise(res.x, F, udir, None).active_set
+            lam, state = mech.face_values(lam), mech.face_values(res.active_set)
             u = u.reshape(-1, d)
             # the contact Jacobian's pattern, and the contact solver's PETSc matrices and AMG, are
             # not needed by the steps
@@ -580,18 +580,20 @@ class Poromechanics:
         u = mech.dirichlet_vector(t0).reshape(-1, d)
         self.u_ref = u.copy()
         mech.release_assembly()                 # no contact solve: the steps do not need it
-        zero = np.zeros((self.n_ff, d))
-        state = linearise_contact(mech.law, self.lam0, zero, zero, mech.normal, mech.face_area)[3]
+        zero = np.zeros((mech.n_c, d))
+        lam0 = mech.patch_values(self.lam0)
+        state = linearise_contact(mech.law, lam0, zero, zero, mech.c_normal, mech.c_area)[3]
         if self.n_ff:
-            ln = np.einsum("fi,fi->f", self.lam0, mech.normal)
-            lt = np.linalg.norm(self.lam0 - ln[:, None] * mech.normal, axis=1)
-            bad = (state == SLIP) | ((state == OPEN) & (np.abs(self.lam0).max(axis=1) > 0))
+            ln = np.einsum("fi,fi->f", lam0, mech.c_normal)
+            lt = np.linalg.norm(lam0 - ln[:, None] * mech.c_normal, axis=1)
+            bad = (state == SLIP) | ((state == OPEN) & (np.abs(lam0).max(axis=1) > 0))
             if np.any(bad):
                 raise RunError(f"the reference stress is not an equilibrium of the contact law on {int(bad.sum())} "
                                f"fracture face(s): tension or |λ_τ| > F λ_n (largest |λ_τ| / λ_n = "
                                f"{float(np.max(lt[bad] / np.maximum(ln[bad], 1e-300))):.3g}); lower the stress "
                                "ratio's deviation or raise the friction")
-        return PoroState(float(t0), u, self.lam0.copy(), p, self.aperture_of(u), np.asarray(state, np.int8))
+        return PoroState(float(t0), u, mech.face_values(lam0).copy(), p, self.aperture_of(u),
+                         np.asarray(mech.face_values(state), np.int8))
 
     def pressure_vector(self, sol: FlowSolution) -> np.ndarray:
         """(n_flow,) the unknown vector of a FlowSolution (FlowDofs order, then cells)."""
@@ -609,10 +611,10 @@ class Poromechanics:
     def _split(self, x, udir, p_dir, s):
         mech, d = self.mech, self.dim
         nfree = mech.free.size
-        nl = self.n_ff * d
+        nl = mech.n_c * d
         u = udir.copy()
         u[mech.free] = x[:nfree]
-        lam = x[nfree:nfree + nl].reshape(self.n_ff, d) * mech.law.beta[:, None]
+        lam = x[nfree:nfree + nl].reshape(mech.n_c, d) * mech.law.beta[:, None]     # per patch
         p = p_dir.copy()
         p[self.flow_free] = s[self.flow_free] * x[nfree + nl:]
         return u, lam, p
@@ -621,13 +623,13 @@ class Poromechanics:
         mech, d, nf = self.mech, self.dim, self.n_ff
         F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old) = ctx
         u, lam, p = self._split(x, udir, p_dir, s)
-        q = (mech.Jv @ u).reshape(nf, d)
-        C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, q, q - q_old, mech.normal, mech.face_area)
+        qc = (mech.Jcv @ u).reshape(mech.n_c, d)                     # patch-mean jumps (contact rows)
+        C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, qc, qc - q_old, mech.c_normal, mech.c_area)
         cs = self._coupling_sign
         # on N ranks A, G, Gᵀ, A_dt and the |·| are RowBlocks: each product is this rank's rows and
         # an Allgatherv, the serial values bit for bit (solvers/distributed.py)
         Gp = self.G @ p
-        Au, Bl = mech.A @ u, mech.Bv.T @ lam.ravel()
+        Au, Bl = mech.A @ u, mech.Bcv.T @ lam.ravel()
         Ru = Au + Bl - cs * Gp - F
         Gdu = self.GT @ (u - u_old)
         Ap = A_dt @ p
@@ -635,9 +637,10 @@ class Poromechanics:
         terms = abs_A @ np.abs(p) + self._abs_GT @ np.abs(u) + terms_old        # Σ |terms| of each flow row
         dil_vals = np.zeros(0)
         if nf and np.any(self.tan_psi > 0):
-            rel, that = self._tangential_slip(q)
+            # dilatancy acts per face, on the faces' own jumps
+            rel, that = self._tangential_slip((mech.Jv @ u).reshape(nf, d))
             w = mech.face_area * self.tan_psi
-            Rf[self.dofs.frac] += w * (rel - self._tangential_slip(q_old)[0])
+            Rf[self.dofs.frac] += w * (rel - self._tangential_slip((mech.Jv @ u_old).reshape(nf, d))[0])
             terms[self.dofs.frac] += w * rel
             jrow_, jval_, dkeep = self._dil
             dil = (s[self.dofs.frac[jrow_]] * w[jrow_] * jval_)[:, None] * that[jrow_]   # (nnz, d)
@@ -666,7 +669,7 @@ class Poromechanics:
         flow = float(np.sqrt(np.max(num / np.maximum(den, 1e-300)))) if ff.size else 0.0
         norms = {"equilibrium": float(np.linalg.norm(Ru[free]) / su), "flow": flow}
         if nf:
-            sc = max(np.linalg.norm(mech.face_area[:, None] * q), np.linalg.norm((mech.face_area / b)[:, None] * lam),
+            sc = max(np.linalg.norm(mech.c_area[:, None] * qc), np.linalg.norm((mech.c_area / b)[:, None] * lam),
                      1e-300)
             norms["contact"] = float(np.linalg.norm(C) / sc)
         counts = {"open": int(np.sum(state == OPEN)), "stick": int(np.sum(state == STICK)),
@@ -691,7 +694,7 @@ class Poromechanics:
         A_dt, r_dt, p_dir = self.flow_step_system(old, dt, t)
         s = self.pressure_scale(A_dt)
         u_old = old.u.ravel()
-        q_old = (mech.Jv @ u_old).reshape(self.n_ff, d)
+        q_old = (mech.Jcv @ u_old).reshape(mech.n_c, d)             # patch jumps of the old state
         sf = s[self.flow_free]
         if hasattr(self.solver, "pressure_nullspace"):
             # the AMG of the pressure Schur block needs the scaled image of a constant pressure
@@ -705,7 +708,8 @@ class Poromechanics:
         abs_A = abs(A_dt)
         terms_old = abs_A @ np.abs(old.p) + np.abs(r_dt) + self._abs_GT @ np.abs(u_old)
         if self.n_ff and np.any(self.tan_psi > 0):
-            terms_old[self.dofs.frac] += mech.face_area * self.tan_psi * self._tangential_slip(q_old)[0]
+            q_face = (mech.Jv @ u_old).reshape(self.n_ff, d)
+            terms_old[self.dofs.frac] += mech.face_area * self.tan_psi * self._tangential_slip(q_face)[0]
         # the Jacobian's data without the contact blocks (2, 3, 7, added per iteration by _linearise):
         # the fixed blocks and the step's coupling and flow blocks; no block of 2–3 shares an entry
         # with 4–6 (contact rows against displacement and pressure rows), so adding 4–6 before them
@@ -714,7 +718,8 @@ class Poromechanics:
         j_step = pat.add(pat.add(pat.add(self._j_fixed.copy(), 4, -cs * g_vals[0]), 5, -g_vals[1]), 6, -af_vals)
         del g_vals, af_vals
         ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old))
-        x0 = np.concatenate([u_old[mech.free], (old.lam / mech.law.beta[:, None]).ravel(), old.p[self.flow_free] / sf])
+        x0 = np.concatenate([u_old[mech.free], (mech.patch_values(old.lam) / mech.law.beta[:, None]).ravel(),
+                             old.p[self.flow_free] / sf])
         return ctx, x0
 
     def step(self, old: PoroState, dt: float, t_new: float | None = None, *, energy: bool = True,
@@ -731,7 +736,7 @@ class Poromechanics:
         mech, d = self.mech, self.dim
         ctx, x0 = self.step_context(old, dt, t)
         udir, p_dir, s = ctx[1], ctx[4], ctx[7]
-        nfree, nl = mech.free.size, self.n_ff * d
+        nfree, nl = mech.free.size, mech.n_c * d
         t1 = time.perf_counter()
         k0 = len(getattr(self.solver, "iterations", []))
 
@@ -752,8 +757,8 @@ class Poromechanics:
         u, lam, p = self._split(res.x, udir, p_dir, s)
         u = u.reshape(-1, d)
         sflux = self.stabilisation_weights * self.stabilisation_jumps(p - old.p) / dt
-        new = PoroState(t, u, lam, p, self.aperture_of(u), np.asarray(res.active_set, np.int8), old.aperture,
-                        sflux)
+        new = PoroState(t, u, mech.face_values(lam), p, self.aperture_of(u),
+                        np.asarray(mech.face_values(res.active_set), np.int8), old.aperture, sflux)
         c = res.counts
         info = StepInfo(res.iterations, res.residual, c.get("open", 0), c.get("stick", 0), c.get("slip", 0),
                         res.history, {"setup": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear})

@@ -17,7 +17,7 @@ def peak_memory_mb() -> float:
 
 def unknowns(problem) -> int:
     """Unknowns of a contact-mechanics problem: free displacement unknowns and the multipliers."""
-    return int(problem.free.size + problem.n_ff * problem.dim)
+    return int(problem.free.size + problem.n_c * problem.dim)
 
 
 class RunClock:

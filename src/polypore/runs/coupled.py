@@ -187,8 +187,8 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
         summary = {
             "case": case.name, "version": __version__, "model": "poromechanics",
             "mesh": {"dim": mesh.dim, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
-                     "fracture_faces": net.n_faces,
-                     "unknowns": int(model.mech.free.size + model.n_ff * model.dim + model.flow_free.size)},
+                     "fracture_faces": net.n_faces, "multiplier_patches": model.mech.patches.summary(),
+                     "unknowns": int(model.mech.free.size + model.mech.n_c * model.dim + model.flow_free.size)},
             "steps": steps,
             "energy_check": {"violations": violations, "steps_checked": len(energies)},
             "fracture_means": series,

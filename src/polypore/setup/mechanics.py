@@ -250,7 +250,7 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
                            forcing=s.forcing, forcing_max=s.forcing_max, label="contact Newton")
     data = MechanicsData(mu=mu, lam=lam, displacement=tuple(disp), traction=tuple(trac), body_force=body_f,
                          matrix_pressure=pm_f, biot=sec.biot, fracture_pressure=pf_f, initial_stress=s0_f,
-                         contact=ContactSpec(c.law, friction, threshold, c.beta, c.initial),
+                         contact=ContactSpec(c.law, friction, threshold, c.beta, c.initial, c.patch_ratio),
                          two_sided=sec.bubbles == "two-sided", stabilisation=sec.stabilisation,
                          **({"order": sec.order} if sec.order != 1 else {}))
     return MechanicsSetup(data, LinearSolver(s.linear, **s.backend_options()), newton, exact, E, nu)

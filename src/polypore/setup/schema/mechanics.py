@@ -13,7 +13,7 @@ from typing import Any, Annotated
 from pydantic import Field, PlainValidator, WithJsonSchema, model_validator
 from pydantic_core import PydanticCustomError
 
-from ...models.contact import LAWS
+from ...models.contact import LAWS, PATCH_RATIO
 from .types import (Expr, ExprTensor, ExprVector, ExprVectorOrExact, Positive, Table, Text, choice, fail, finite,
                     is_number, number, show)
 
@@ -183,6 +183,9 @@ class Contact(Table):
     beta: Positive = Field(1.0, description="c in β = c (2μ + λ)/h of the augmented multipliers")
     initial: choice("closed", "open") = Field("closed", description="first Newton iterate: closed (bonded) or "
                                               "open (λ = 0)")
+    patch_ratio: number(ge=0, le=1) = Field(
+        PATCH_RATIO, description="multiplier patches: fracture faces smaller than this fraction of their cells' "
+        "cross-section share their multiplier with neighbours (slivers of corner-point faults); 0: one per face")
 
     @model_validator(mode="after")
     def _law_keys(self):

@@ -1,0 +1,208 @@
+"""Multiplier patches: P0 contact multipliers on agglomerates of small fracture faces.
+
+The scheme's multiplier is constant per fracture face (scheme.md §4). Its discrete inf-sup
+constant is controlled face by face by the bubble v_Kσ: testing with it gives |σ| λ_σ against
+a bubble norm ~ h_K^{(d−2)/2} (the stabilisation's weight), so the constant scales like
+√(|σ| / A_K) with A_K = |K| / w_K the cross-section of the cell K normal to σ (w_K: K's extent
+along n_σ). On shape-regular meshes |σ| / A_K ≥ 1/3; on corner-point faults, where faces are
+overlaps of displaced columns, it falls to 10⁻³ on slivers and thin strips, and the multipliers
+there pick up tractions no stress path produces (docs/contact_patches.md: 60× the
+overpressure on real grids).
+
+The cure kept here: the multiplier is constant on a **patch**, a connected set of faces of one
+fracture whose area is at least ``ratio`` × the largest A_K of its cells; faces that reach it
+alone stay their own patch (so regular meshes are untouched). The contact conditions are
+exact per multiplier, on the patch-mean jump [[u]]_P = Σ_{σ∈P} |σ| [[u]]_σ / |P|, and the
+equilibrium coupling Σ_P |P| λ_P·[[v]]_P = Σ_σ |σ| λ_{P(σ)}·[[v]]_σ keeps the discrete energy
+identity with λ_σ := λ_{P(σ)}. The multiplier space of the patches is a subspace of the
+face-wise one, with its inf-sup constant bounded below by that of its patches
+(tests/test_contact_patches.py measures both on shrinking and thinning faces).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
+
+from ..core.ragged import frozen
+
+__all__ = ["ContactPatches", "contact_patches", "cross_section_ratio"]
+
+# faces of one patch must not turn by more than this (cos of 60°): the patch's normal is their
+# mean, and a larger turn would mix normal and tangential jumps of the faces
+MIN_NORMAL_COSINE = 0.5
+MAX_ROUNDS = 12
+
+
+@dataclass(frozen=True, eq=False)
+class ContactPatches:
+    """Multiplier patches of a fracture network.
+
+    Attributes
+    ----------
+    face_patch : (n_ff,) int64, the patch of each fracture face
+    area : (n_p,) |P| (m² in 3D, m in 2D)
+    normal : (n_p, d) unit normal n_P ∝ Σ_{σ∈P} |σ| n_σ⁺
+    diameter : (n_p,) largest face diameter of the patch, m
+    plus_cell : (n_p,) the + cell of the patch's largest face (owner of its multiplier)
+    fracture : (n_p,) fracture index
+    mean : (n_p, n_ff) csr, |σ| / |P| for σ ∈ P: patch means of face values
+    ratio : (n_ff,) |σ| / A_K, the face's own area against its cells' cross-sections
+    patch_ratio : (n_p,) |P| / max A_K over the patch's cells
+    """
+
+    face_patch: np.ndarray
+    area: np.ndarray
+    normal: np.ndarray
+    diameter: np.ndarray
+    plus_cell: np.ndarray
+    fracture: np.ndarray
+    mean: sp.csr_array
+    ratio: np.ndarray
+    patch_ratio: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return int(self.area.size)
+
+    @property
+    def identity(self) -> bool:
+        """True when every face is its own patch (the scheme's face-wise multipliers)."""
+        return self.n == self.face_patch.size
+
+    def expand(self, values: np.ndarray) -> np.ndarray:
+        """Face values (n_ff, ...) of patch values (n_p, ...)."""
+        return values[self.face_patch]
+
+    def summary(self) -> dict:
+        """Counts for run reports: patches, faces, faces merged, smallest face ratio."""
+        merged = np.bincount(self.face_patch, minlength=self.n)
+        return {"patches": self.n, "faces": int(self.face_patch.size), "faces_in_shared_patches":
+                int(np.sum(merged[self.face_patch] > 1)), "largest_patch_faces": int(merged.max(initial=0)),
+                "smallest_face_ratio": float(self.ratio.min(initial=np.inf)) if self.ratio.size else None,
+                "smallest_patch_ratio": float(self.patch_ratio.min(initial=np.inf)) if self.n else None}
+
+
+def _extent_along(mesh, cells: np.ndarray, origin: np.ndarray, normal: np.ndarray) -> np.ndarray:
+    """(k,) extent max − min of (x_s − origin)·n over the nodes of each cell, m."""
+    sub = mesh.cell_nodes.take(cells)
+    rows = sub.rows_of_entries()
+    proj = np.einsum("kd,kd->k", mesh.nodes[sub.values] - origin[rows], normal[rows])
+    starts = sub.offsets[:-1]
+    return np.maximum.reduceat(proj, starts) - np.minimum.reduceat(proj, starts)
+
+
+def cross_section_ratio(fm) -> np.ndarray:
+    """(n_ff,) |σ| / max(A_K⁺, A_K⁻) with A_K = |K| / w_K the cross-section of K normal to σ.
+
+    1/3 or more on simplices, 1 for a face covering a hexahedron's side, ≪ 1 for slivers and
+    thin strips (the factor of the face's inf-sup constant, module docstring)."""
+    net, g, mesh = fm.network, fm.mesh.geometry, fm.mesh
+    if net.n_faces == 0:
+        return np.zeros(0)
+    area = g.face_area[net.faces]
+    xc, n = g.face_centroid[net.faces], net.normal
+    ref = np.zeros(net.n_faces)
+    for cells in (net.plus_cell, net.minus_cell):
+        w = _extent_along(mesh, cells, xc, n)
+        ref = np.maximum(ref, g.cell_volume[cells] / np.maximum(w, 1e-300))
+    return area / np.maximum(ref, 1e-300)
+
+
+def _face_links(fm) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pairs (a, b) of fracture faces of one fracture sharing a fracture edge with at most a
+    60° turn, and the edge's measure (length in 3D, 1 in 2D)."""
+    net = fm.network
+    ef = net.edge_faces
+    two = np.flatnonzero(ef.counts == 2)
+    if two.size == 0:
+        z = np.zeros(0, np.int64)
+        return z, z, np.zeros(0)
+    a = ef.values[ef.offsets[two]].astype(np.int64)
+    b = ef.values[ef.offsets[two] + 1].astype(np.int64)
+    if fm.mesh.dim == 3:
+        en = net.edge_nodes[two]
+        w = np.linalg.norm(fm.mesh.nodes[en[:, 1]] - fm.mesh.nodes[en[:, 0]], axis=1)
+    else:
+        w = np.ones(two.size)
+    ok = (net.fracture[a] == net.fracture[b]) & (np.einsum("kd,kd->k", net.normal[a], net.normal[b])
+                                                  > MIN_NORMAL_COSINE)
+    return a[ok], b[ok], w[ok]
+
+
+def contact_patches(fm, ratio: float = 0.0) -> ContactPatches:
+    """Agglomerate fracture faces into multiplier patches.
+
+    Parameters
+    ----------
+    fm : FracturedMesh
+    ratio : float
+        Smallest |P| / A_K a patch may have (A_K: the largest cross-section of its cells normal
+        to its faces, :func:`cross_section_ratio`); 0 keeps one multiplier per face.
+
+    Returns
+    -------
+    ContactPatches
+        Each patch is connected (faces sharing a fracture edge) and lies on one fracture; a
+        patch below ``ratio`` joins, round by round, the neighbouring patch with which it shares
+        the longest edges, until none is below or none can join.
+    """
+    net, g = fm.network, fm.mesh.geometry
+    nf = net.n_faces
+    area = g.face_area[net.faces]
+    r = cross_section_ratio(fm)
+    ref = area / np.maximum(r, 1e-300)
+    patch = np.arange(nf, dtype=np.int64)
+    if ratio > 0 and nf:
+        a, b, w = _face_links(fm)
+        for _ in range(MAX_ROUNDS):
+            n_p = int(patch.max()) + 1
+            p_area = np.bincount(patch, area, n_p)
+            p_ref = np.zeros(n_p)
+            np.maximum.at(p_ref, patch, ref)
+            bad = p_area < ratio * p_ref
+            pa, pb = patch[a], patch[b]
+            cross = pa != pb
+            # shared boundary between neighbouring patches, both directions
+            src = np.concatenate([pa[cross], pb[cross]])
+            dst = np.concatenate([pb[cross], pa[cross]])
+            ww = np.concatenate([w[cross], w[cross]])
+            sel = bad[src]
+            if not np.any(sel):
+                break
+            src, dst, ww = src[sel], dst[sel], ww[sel]
+            key = src * n_p + dst
+            ukey, inv = np.unique(key, return_inverse=True)
+            wsum = np.bincount(inv, ww)
+            us, ud = ukey // n_p, ukey % n_p
+            # for each bad patch its neighbour with the longest shared boundary (ties: lowest index)
+            order = np.lexsort((ud, -wsum, us))
+            first = np.r_[True, us[order][1:] != us[order][:-1]]
+            ls, ld = us[order][first], ud[order][first]
+            G = sp.coo_array((np.ones(ls.size), (ls, ld)), shape=(n_p, n_p))
+            _, lab = connected_components(G, directed=False)
+            # relabel in order of first face so that labels are stable and dense
+            _, patch = np.unique(lab[patch], return_inverse=True)
+            patch = patch.astype(np.int64)
+        _, first_face = np.unique(patch, return_index=True)
+        rank = np.empty(first_face.size, np.int64)
+        rank[np.argsort(first_face)] = np.arange(first_face.size)
+        patch = rank[patch]
+    n_p = int(patch.max()) + 1 if nf else 0
+    p_area = np.bincount(patch, area, n_p)
+    vec = np.stack([np.bincount(patch, area * net.normal[:, k], n_p) for k in range(fm.mesh.dim)], 1)
+    normal = vec / np.maximum(np.linalg.norm(vec, axis=1), 1e-300)[:, None]
+    diam = np.zeros(n_p)
+    np.maximum.at(diam, patch, g.face_diameter[net.faces])
+    # largest face of each patch: owner cell of the multiplier (and its fracture)
+    order = np.lexsort((-area, patch))
+    head = order[np.r_[True, patch[order][1:] != patch[order][:-1]]] if nf else np.zeros(0, np.int64)
+    p_ref = np.zeros(n_p)
+    np.maximum.at(p_ref, patch, ref)
+    W = sp.csr_array((area / p_area[patch], (patch, np.arange(nf))), shape=(n_p, nf))
+    return ContactPatches(frozen(patch), frozen(p_area), frozen(normal), frozen(diam),
+                          frozen(net.plus_cell[head].astype(np.int64)), frozen(net.fracture[head].astype(np.int64)),
+                          W, frozen(r), frozen(p_area / np.maximum(p_ref, 1e-300)))

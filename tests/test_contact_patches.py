@@ -1,0 +1,109 @@
+"""Multiplier patches on slivers (discretisation/contact_patches.py, docs/contact_patches.md)."""
+
+import json
+
+import numpy as np
+import pytest
+
+from polypore.cli import main
+from polypore.discretisation.contact_patches import contact_patches, cross_section_ratio
+from polypore.mesh.cornerpoint import fractured_mesh, process_grid
+from polypore.mesh.cornerpoint.generate import FaultSpec, generate_grid
+from polypore.models.inf_sup import inf_sup_constant
+from polypore.models.mechanics import ContactMechanics, ContactSpec, DisplacementBC, MechanicsData
+
+
+def _fault_mesh(throw, nx=4, ny=2, nz=4):
+    """A 4 × 2 × 4 grid of 100 m × 100 m × 25 m cells, a vertical fault on pillar line i = 2 with
+    the given throw: its faces are overlaps of 25 − throw and throw m height (slivers as
+    throw → 0), no snapping."""
+    grid = generate_grid(nx, ny, nz, extent=(400.0, 200.0, 100.0), faults=[FaultSpec("i", nx // 2, throw, name="F")],
+                         properties=False)
+    mesh, info = process_grid(grid, snap=0.0)
+    return fractured_mesh(mesh, info, ["F"])
+
+
+def _mechanics(fm, ratio):
+    zero = lambda X, t: np.zeros_like(X)  # noqa: E731
+    bcs = [DisplacementBC("bottom", (0, 1, 2), zero)] + [DisplacementBC(b, (0, 1), zero)
+                                                         for b in ("west", "east", "south", "north")]
+    n = fm.mesh.n_cells
+    data = MechanicsData(mu=np.full(n, 1e10), lam=np.full(n, 1e10), displacement=bcs,
+                         contact=ContactSpec("coulomb", 0.6, patch_ratio=ratio))
+    return ContactMechanics(fm, data)
+
+
+@pytest.fixture(scope="module")
+def inf_sup_family():
+    """β (face-wise, patches) on faces thinning from 1/2 to 1/1000 of the layer height."""
+    out = {}
+    for t in (12.5, 2.5, 0.25, 0.025):
+        fm = _fault_mesh(t)
+        out[t] = (inf_sup_constant(_mechanics(fm, 0.0)), inf_sup_constant(_mechanics(fm, 0.2)),
+                  float(cross_section_ratio(fm).min()))
+    return out
+
+
+def test_face_wise_inf_sup_degrades_like_the_root_of_the_face_ratio(inf_sup_family):
+    # the measurement itself must see the defect the patches cure: β ∝ √(|σ|/A_K)
+    b = {t: v[0] for t, v in inf_sup_family.items()}
+    assert b[0.025] < 0.15 * b[2.5]
+    rate = np.log(b[0.25] / b[0.025]) / np.log(10.0)
+    assert 0.35 < rate < 0.65
+
+
+def test_patch_inf_sup_does_not_degrade(inf_sup_family):
+    bp = np.array([v[1] for v in inf_sup_family.values()])
+    bf = np.array([v[0] for v in inf_sup_family.values()])
+    assert np.all(bp >= bf - 1e-12)                        # a subspace of the face-wise multipliers
+    assert bp.min() > 0.8 * bp.max() and bp.min() > 0.1
+    assert inf_sup_family[12.5][0] == pytest.approx(inf_sup_family[12.5][1])   # no sliver: no patch
+
+
+def test_patches_are_connected_sized_and_identity_on_regular_faces():
+    fm = _fault_mesh(1.0)
+    P = contact_patches(fm, 0.2)
+    assert not P.identity and P.patch_ratio.min() >= 0.2
+    assert np.allclose(P.mean.sum(axis=1), 1.0) and np.allclose(np.linalg.norm(P.normal, axis=1), 1.0)
+    assert np.all(P.fracture[P.face_patch] == fm.network.fracture)
+    sizes = np.bincount(P.face_patch)
+    assert sizes.max() <= 3 and np.sum(sizes > 1) > 0
+    # each sliver (ratio 0.04) joined a full face of its own fault
+    r = cross_section_ratio(fm)
+    assert np.all(sizes[P.face_patch[r < 0.2]] > 1)
+    Q = contact_patches(_fault_mesh(12.5), 0.2)
+    assert Q.identity
+
+
+def test_patch_contact_reproduces_a_uniform_traction():
+    # a compressed bar with a slivered fault: the multipliers carry the uniform stress exactly
+    fm = _fault_mesh(0.5)
+    mech = _mechanics(fm, 0.2)
+    assert not mech.patches.identity
+    n = fm.mesh.n_cells
+    sxx = -5e6
+    s0 = lambda X, t: np.broadcast_to(np.diag([sxx, sxx, sxx]), (len(X), 3, 3))  # noqa: E731
+    zero = lambda X, t: np.zeros_like(X)  # noqa: E731
+    bcs = [DisplacementBC(b, (0, 1, 2), zero) for b in ("west", "east", "south", "north", "bottom", "top")]
+    data = MechanicsData(mu=np.full(n, 1e10), lam=np.full(n, 1e10), displacement=bcs, initial_stress=s0,
+                         contact=ContactSpec("coulomb", 0.6, patch_ratio=0.2))
+    st = ContactMechanics(fm, data).solve(verbose=False)
+    ln = np.einsum("fi,fi->f", st.lam, fm.network.normal)
+    # λ = −T⁺ = −σ⁰ n⁺ (the fault is vertical; the patch normals are the faces')
+    np.testing.assert_allclose(ln, -sxx, rtol=1e-8)
+    assert np.all(st.state == 1)
+
+
+def test_slivered_cornerpoint_run_keeps_the_energy_identity(tmp_path):
+    out = tmp_path / "o"
+    assert main(["run", "cornerpoint-injection", "--out", str(out), "--set", "mesh.cells=[10, 4, 4]",
+                 "--set", "mesh.extent=[1000.0, 400.0, 80.0]", "--set", "mesh.faults.F1.index=5",
+                 "--set", "mesh.faults.F1.throw=1.5", "--set", "mesh.faults.F2.index=2", "--set", "mesh.faults.F2.stop=6",
+                 "--set", "mesh.snap=0",
+                 "--set", "flow.wells.I1.column=[3, 2]", "--set", "flow.wells.I1.layers=[2, 3]",
+                 "--set", "monitor.points={ well = [250.0, 150.0, -1530.0], fault = [500.0, 150.0, -1530.0] }",
+                 "--set", "time.end=172800"]) == 0
+    s = json.loads((out / "summary.json").read_text())
+    assert s["energy_check"]["violations"] == [] and s["energy_check"]["steps_checked"] == 2
+    mp = s["mesh"]["multiplier_patches"]
+    assert mp["faces_in_shared_patches"] > 0 and mp["smallest_patch_ratio"] >= 0.2
