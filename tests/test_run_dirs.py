@@ -1,6 +1,7 @@
-"""Run directories (issue 14): a finished run leaves a complete result; a failure, SIGINT or
-SIGTERM leaves only failed.json with the reason; --force starts from a clean folder and never
-wipes a folder that is not a polypore result; staging folders of killed runs are removed."""
+"""Run directories (issues 14, 25): a finished run leaves a complete result; a failure, SIGINT or
+SIGTERM leaves only failed.json with the reason; --force deletes only what a polypore run wrote
+(the entries its marker lists) and refuses any folder holding something else; a run locks its
+folder; staging folders of killed runs are removed."""
 
 import json
 import os
@@ -28,12 +29,29 @@ def tiny(tmp_path):
     return case
 
 
-def _old_result(out):
-    """A previous run's complete result, as far as anyone looking at the folder can tell."""
+MARKER = ".polypore-run.json"
+LOCK = ".polypore-lock"
+
+
+def _old_result(out, marker=True):
+    """A previous run's complete result, with the marker a polypore run writes (``marker``)."""
     out.mkdir()
     (out / "summary.json").write_text("{}")
     (out / "case.toml").write_text('name = "old"\n')
     (out / "bulk_0000.vtu").write_text("old")
+    if marker:
+        entries = ["summary.json", "case.toml", "bulk_0000.vtu", MARKER, LOCK]
+        (out / MARKER).write_text(json.dumps({"polypore": "0.1.0", "status": "finished", "entries": entries}))
+
+
+def _visible(out):
+    """The names in a run folder other than polypore's own marker and lock."""
+    return sorted(p.name for p in out.iterdir() if p.name not in (MARKER, LOCK))
+
+
+def _snapshot(folder):
+    """Every file under ``folder`` with its bytes (folders as None)."""
+    return {str(p.relative_to(folder)): (p.read_bytes() if p.is_file() else None) for p in folder.rglob("*")}
 
 
 def _start(case, out, *extra):
@@ -72,9 +90,11 @@ def test_signal_leaves_only_failed_json(tmp_path, tiny, sig, status, reason):
     assert proc.returncode == status, err
     assert "Traceback" not in err
     assert err.strip().splitlines() == [f"polypore: {reason}; wrote {out / 'failed.json'}"]
-    assert sorted(p.name for p in out.iterdir()) == ["failed.json"]
+    assert _visible(out) == ["failed.json"]
     failed = json.loads((out / "failed.json").read_text())
     assert failed["error"] == reason and failed["signal"] == sig.name
+    marker = json.loads((out / MARKER).read_text())
+    assert marker["status"] == "failed" and marker["entries"] == sorted(["failed.json", MARKER, LOCK])
     assert not list(tmp_path.glob(".partial-*"))
 
 
@@ -102,7 +122,7 @@ def test_failed_force_rerun_leaves_only_failed_json(tmp_path, tiny, cli):
     assert (out / "summary.json").exists()
     code, _, err = cli("run", str(tiny), "--out", str(out), "--force", "--set", "solver.max_iterations=1")
     assert code == 1 and "did not converge" in err, err
-    assert sorted(p.name for p in out.iterdir()) == ["failed.json"]
+    assert _visible(out) == ["failed.json"]
     assert "did not converge" in json.loads((out / "failed.json").read_text())["error"]
     # a folder holding only a failed run's failed.json takes a new result without --force
     code, _, err = cli("mesh", str(tiny), "--out", str(out))
@@ -117,24 +137,85 @@ def test_input_error_during_run_replaces_the_old_result(tmp_path, tiny, cli):
     code, _, err = cli("run", str(tiny), "--out", str(out), "--force",
                        "--set", 'mechanics.boundary.ymax.u=[0.0, "0.005/x"]')
     assert code == 2 and "mechanics.boundary.ymax.u[1]" in err and "(x, y) = (0, 1)" in err, err
-    assert sorted(p.name for p in out.iterdir()) == ["failed.json"]
+    assert _visible(out) == ["failed.json"]
     failed = json.loads((out / "failed.json").read_text())
     assert failed["field"] == "mechanics.boundary.ymax.u[1]" and "not finite" in failed["error"]
 
 
-def test_force_into_another_result_leaves_no_foreign_files(tmp_path, tiny, cli):
+def test_force_replaces_a_polypore_result(tmp_path, tiny, cli):
     out = tmp_path / "out"
     code, _, err = cli("mesh", str(tiny), "--out", str(out))
     assert code == 0, err
-    (out / "notes.txt").write_text("kept by nobody: --force starts from a clean folder")
+    marker = json.loads((out / MARKER).read_text())
+    assert marker["status"] == "finished" and marker["polypore"]
+    assert set(marker["entries"]) == {p.name for p in out.iterdir()}
     code, _, err = cli("run", str(tiny), "--out", str(out), "--set", "mesh.cells=[4, 4]")
     assert code == 2 and "not empty" in err and "--force" in err
     code, _, err = cli("run", str(tiny), "--out", str(out), "--force", "--set", "mesh.cells=[4, 4]")
     assert code == 0, err
-    names = {p.name for p in out.iterdir()}
+    names = set(_visible(out))
     assert "summary.json" in names and "case.toml" in names
-    assert not names & {"mesh.json", "mesh.vtu", "fractures.vtu", "notes.txt"}, names
+    assert not names & {"mesh.json", "mesh.vtu", "fractures.vtu"}, names
+    assert set(json.loads((out / MARKER).read_text())["entries"]) == {p.name for p in out.iterdir()}
     assert tomllib.loads((out / "case.toml").read_text())["mesh"]["cells"] == [4, 4]
+
+
+def test_force_refuses_a_result_with_a_file_added(tmp_path, tiny, cli):
+    """A user's file in a result folder is not the run's to delete: --force refuses the folder."""
+    out = tmp_path / "out"
+    code, _, err = cli("mesh", str(tiny), "--out", str(out))
+    assert code == 0, err
+    (out / "notes.txt").write_text("mine")
+    before = _snapshot(out)
+    code, _, err = cli("run", str(tiny), "--out", str(out), "--force")
+    assert code == 2 and "--out" in err and "'notes.txt'" in err and "did not write" in err, err
+    assert _snapshot(out) == before
+    assert not list(tmp_path.glob(".partial-*"))
+
+
+def test_force_deletes_nothing_in_a_folder_of_foreign_files(tmp_path, tiny, cli):
+    """issue 25: a folder holding a case.toml (once enough for --force to wipe it) and a user's
+    notes and data is refused, every file left byte for byte."""
+    mine = tmp_path / "mine"
+    (mine / "data").mkdir(parents=True)
+    (mine / "data" / "well.csv").write_bytes(b"t,p\n0,1\n")
+    (mine / "notes.txt").write_text("precious")
+    (mine / "case.toml").write_text(tiny.read_text())
+    (mine / "summary.json").write_text("{}")
+    before = _snapshot(mine)
+    code, _, err = cli("run", str(tiny), "--out", str(mine), "--force")
+    assert code == 2 and "--out" in err and "not written by polypore" in err, err
+    assert "'notes.txt'" in err and "'data'" in err and "Traceback" not in err
+    assert _snapshot(mine) == before
+    assert not list(tmp_path.glob(".partial-*"))
+
+
+def test_result_of_an_older_polypore_is_refused(tmp_path, tiny, cli):
+    out = tmp_path / "old"
+    _old_result(out, marker=False)
+    before = _snapshot(out)
+    code, _, err = cli("run", str(tiny), "--out", str(out), "--force")
+    assert code == 2 and MARKER in err and "versions before that marker" in err, err
+    assert _snapshot(out) == before
+
+
+def test_force_keeps_a_file_added_inside_a_listed_folder(tmp_path):
+    """The marker lists nested entries too: a file added to a folder the run wrote is foreign."""
+    from polypore.core.errors import InputError
+    from polypore.io import atomic
+
+    out = tmp_path / "out"
+    with atomic.run_directory(out) as stage:
+        (stage / "frames").mkdir()
+        (stage / "frames" / "0.png").write_text("png")
+    assert "frames/0.png" in json.loads((out / MARKER).read_text())["entries"]
+    (out / "frames" / "mine.txt").write_text("mine")
+    with pytest.raises(InputError, match="frames/mine.txt"):
+        atomic.check_output_directory(out, force=True)
+    # the clearing itself deletes only listed paths, even if the check was bypassed
+    atomic._clear(out)
+    assert (out / "frames" / "mine.txt").read_text() == "mine"
+    assert not (out / "frames" / "0.png").exists() and not (out / MARKER).exists()
 
 
 def test_force_refuses_a_folder_that_is_not_a_result(tmp_path, tiny, cli):
@@ -142,19 +223,42 @@ def test_force_refuses_a_folder_that_is_not_a_result(tmp_path, tiny, cli):
     mine.mkdir()
     (mine / "thesis.tex").write_text("precious")
     code, _, err = cli("run", str(tiny), "--out", str(mine), "--force")
-    assert code == 2 and "--out" in err and "not hold a polypore result" in err, err
+    assert code == 2 and "--out" in err and "not written by polypore" in err, err
     assert sorted(p.name for p in mine.iterdir()) == ["thesis.tex"]
     assert not list(tmp_path.glob(".partial-*"))
     (tmp_path / "file").write_text("x")
     code, _, err = cli("run", str(tiny), "--out", str(tmp_path / "file"))
     assert code == 2 and "not a directory" in err
-    # a case file named case.toml makes its folder look like a result: --force must not delete it
+    # a case file named case.toml in the output folder: never deleted
     proj = tmp_path / "proj"
     proj.mkdir()
     (proj / "case.toml").write_text(tiny.read_text())
     code, _, err = cli("run", str(proj / "case.toml"), "--out", str(proj), "--force")
     assert code == 2 and "holds the case file" in err, err
     assert (proj / "case.toml").read_text() == tiny.read_text()
+
+
+def test_a_second_run_into_a_busy_folder_exits_2(tmp_path, tiny, cli):
+    """issue 25: a run holds its folder until its results are moved in; a second run into it
+    meanwhile is refused (exit 2, naming the folder and the holder) and the first one's result
+    is intact."""
+    out = tmp_path / "out"
+    first = _start(tiny, out)
+    _wait_for_stage(first, tmp_path)
+    first.send_signal(signal.SIGSTOP)        # holds the lock for as long as the test needs
+    try:
+        code, _, err = cli("run", str(tiny), "--out", str(out), "--force")
+    finally:
+        first.send_signal(signal.SIGCONT)
+    assert code == 2 and "in use by another polypore run" in err, err
+    assert str(out) in err and f"process {first.pid} on host" in err, err
+    _, err1 = first.communicate(timeout=120)
+    assert first.returncode == 0, err1
+    assert json.loads((out / MARKER).read_text())["status"] == "finished"
+    assert (out / "summary.json").is_file() and not (out / "failed.json").exists()
+    # the lock went with the first process: the folder takes a new run
+    code, _, err = cli("run", str(tiny), "--out", str(out), "--force")
+    assert code == 0, err
 
 
 @pytest.mark.parametrize("where", ["remove_stale_stages", "_host"])
@@ -173,5 +277,5 @@ def test_interrupt_while_the_stage_is_being_made_leaves_failed_json(tmp_path, mo
     with pytest.raises(KeyboardInterrupt):
         with atomic.run_directory(out, force=True):
             pass
-    assert sorted(p.name for p in out.iterdir()) == ["failed.json"]
+    assert _visible(out) == ["failed.json"]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(atomic.STAGE_PREFIX)]

@@ -335,7 +335,8 @@ def _case_arguments(p, default_out: str) -> None:
     p.add_argument("--out", metavar="DIR", help=f"output directory (default: {default_out})")
     p.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field, e.g. mesh.size=0.1")
     p.add_argument("--force", action="store_true", help="replace a previous polypore result in the output "
-                   "directory (a folder of other files is refused)")
+                   "directory: only what polypore wrote there is deleted, a folder holding anything else is "
+                   "refused")
     p.add_argument("--no-limits", action="store_true", help="run even when the estimated cells, time steps or "
                    "memory exceed the machine or sane bounds")
 
