@@ -279,3 +279,74 @@ def test_interrupt_while_the_stage_is_being_made_leaves_failed_json(tmp_path, mo
             pass
     assert _visible(out) == ["failed.json"]
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(atomic.STAGE_PREFIX)]
+
+
+# the tiny case meshed by gmsh (generator "simplicial"): gmsh.initialize resets SIGTERM at C level
+GMSH_CASE = (STATIC_2D.replace('name = "t"', 'name = "g"')
+             .replace('generator = "cartesian"', 'generator = "simplicial"').replace("cells = [4, 4]", "size = 0.25"))
+
+# runs the command line with a pause after the gmsh session has ended, announced on stderr
+AFTER_GMSH = """
+import sys, time
+from contextlib import contextmanager
+import polypore.mesh.generators.simplicial as simplicial
+session = simplicial.gmsh_session
+
+@contextmanager
+def announced(*args, **kwargs):
+    with session(*args, **kwargs) as gmsh:
+        yield gmsh
+    print("GMSH-DONE", file=sys.stderr, flush=True)
+    time.sleep(60)
+
+simplicial.gmsh_session = announced
+from polypore.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+def test_sigterm_after_gmsh_still_leaves_failed_json(tmp_path):
+    """issue 25: once gmsh had run, SIGTERM killed the run outright (gmsh resets the C handler,
+    Python still reports its own): no message, no failed.json, the stage left behind, and an
+    earlier failed.json describing another run. The handlers are re-armed after gmsh."""
+    case = tmp_path / "g.toml"
+    case.write_text(GMSH_CASE)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "failed.json").write_text(json.dumps({"error": "an earlier run", "type": "RunError"}))
+    (out / MARKER).write_text(json.dumps({"status": "failed", "entries": ["failed.json", MARKER, LOCK]}))
+    proc = subprocess.Popen([sys.executable, "-c", AFTER_GMSH, "run", str(case), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    t_end = time.monotonic() + 60
+    lines = []
+    while time.monotonic() < t_end:
+        line = proc.stderr.readline()
+        lines.append(line)
+        if "GMSH-DONE" in line or not line:
+            break
+    assert "GMSH-DONE" in lines[-1], "".join(lines)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 143, "".join(lines) + err
+    assert f"polypore: terminated by SIGTERM; wrote {out / 'failed.json'}" in err
+    failed = json.loads((out / "failed.json").read_text())
+    assert failed["signal"] == "SIGTERM" and failed["error"] == "terminated by SIGTERM"
+    assert _visible(out) == ["failed.json"]
+    assert not list(tmp_path.glob(".partial-*"))
+
+
+def test_rearm_restores_the_handlers_gmsh_resets():
+    """Python's SIGTERM handler still works at C level after a gmsh session (in a child process,
+    which must not take the test runner's handlers)."""
+    code = """
+import os, signal, sys, time
+from polypore.mesh.msh import gmsh_session
+signal.signal(signal.SIGTERM, lambda s, f: sys.exit(7))
+with gmsh_session() as gmsh:
+    pass
+os.kill(os.getpid(), signal.SIGTERM)
+time.sleep(5)
+sys.exit(0)
+"""
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert proc.returncode == 7, proc.stderr
