@@ -402,7 +402,9 @@ def main(argv=None) -> int:
         return 2
     try:
         with _signals_raise():
-            return args.func(args)
+            status = args.func(args)
+            sys.stdout.flush()   # a closed pipe raises here, inside the handlers below, not at exit
+            return status
     except InputError as exc:
         if _is_root():                  # distributed: every rank raises the same, rank 0 reports
             print(f"polypore: error: {exc}", file=sys.stderr)
@@ -411,6 +413,14 @@ def main(argv=None) -> int:
         if _is_root():
             print(f"polypore: run failed: {exc}", file=sys.stderr)
         return exc.exit_status
+    except BrokenPipeError:
+        # stdout piped into a program that stopped reading (`| head -1`, `| grep -q`): not an error
+        # of the run. Python's documented recipe: point stdout at devnull, so that the flush at exit
+        # does not raise again, and leave quietly (before `except Exception`, which would catch it)
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except Exception:
         _abort_other_ranks()
         raise
@@ -421,12 +431,6 @@ def main(argv=None) -> int:
         what = "interrupted by the user (SIGINT)" if name == "SIGINT" else str(exc)
         print(f"polypore: {what}" + (f"; wrote {where}" if where else ""), file=sys.stderr)
         return 128 + signal.Signals[name].value
-    except BrokenPipeError:
-        # output piped into a program that stopped reading (e.g. `| head`): not an error of the run
-        import os
-
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover
