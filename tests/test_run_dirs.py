@@ -350,3 +350,143 @@ sys.exit(0)
 """
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
     assert proc.returncode == 7, proc.stderr
+
+
+# -- issue 25: messages instead of tracebacks for output folders that cannot be written ---------------
+def _no_work(monkeypatch):
+    """Fail the test if the run starts its work (the folder must be judged before)."""
+    import polypore.runs.dispatch as dispatch
+
+    def run_case(*args, **kwargs):
+        raise AssertionError("the run started although its output folder cannot be written")
+
+    monkeypatch.setattr(dispatch, "run_case", run_case)
+
+
+def _read_only(monkeypatch, folder):
+    """Make creating files in ``folder`` fail as on a read-only file system (root ignores chmod)."""
+    import errno
+
+    real_open, real_mkdir = os.open, os.mkdir
+
+    def inside(path):
+        return os.path.abspath(os.fspath(path)).startswith(str(folder) + os.sep)
+
+    def fake_open(path, flags, *args, **kwargs):
+        if flags & os.O_CREAT and inside(path):
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), os.fspath(path))
+        return real_open(path, flags, *args, **kwargs)
+
+    def fake_mkdir(path, *args, **kwargs):
+        if inside(path):
+            raise OSError(errno.EROFS, os.strerror(errno.EROFS), os.fspath(path))
+        return real_mkdir(path, *args, **kwargs)
+
+    monkeypatch.setattr(os, "open", fake_open)
+    monkeypatch.setattr(os, "mkdir", fake_mkdir)
+
+
+@pytest.mark.parametrize("existing", [True, False])
+def test_read_only_output_is_refused_before_the_run(tmp_path, tiny, cli, monkeypatch, existing):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    out = ro / "out"
+    if existing:
+        out.mkdir()
+    _no_work(monkeypatch)
+    _read_only(monkeypatch, ro)
+    code, _, err = cli("run", str(tiny), "--out", str(out))
+    assert code == 2 and "--out: cannot" in err and str(out) in err and "Read-only file system" in err, err
+    assert "Traceback" not in err
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_read_only_parent_is_refused_before_the_run(tmp_path, tiny, cli, monkeypatch):
+    ro = tmp_path / "ro"
+    (ro / "out").mkdir(parents=True)
+    ro.chmod(0o555)
+    _no_work(monkeypatch)
+    try:
+        code, _, err = cli("run", str(tiny), "--out", str(ro / "out"))
+    finally:
+        ro.chmod(0o755)
+    assert code == 2 and "--out: cannot write in" in err and "permission denied" in err, err
+
+
+@pytest.mark.parametrize("name", ["a" * 256, "é" * 128, "d" * 300 + "/out"])
+def test_names_too_long_for_the_file_system(tmp_path, tiny, cli, monkeypatch, name):
+    _no_work(monkeypatch)
+    for force in ((), ("--force",)):
+        code, _, err = cli("run", str(tiny), "--out", str(tmp_path / name), *force)
+        assert code == 2 and "--out: cannot" in err and "File name too long" in err, err
+    assert [p.name for p in tmp_path.iterdir()] == ["tiny.toml"]
+
+
+def test_longest_name_works(tmp_path, tiny, cli):
+    """255 bytes is allowed; the staging folder's name, cut to 80 bytes (whole characters), too."""
+    out = tmp_path / ("\U0001d11e" * 63 + "xyz")       # 63 four-byte characters: 255 bytes
+    assert len(out.name.encode()) == 255
+    code, _, err = cli("mesh", str(tiny), "--out", str(out))
+    assert code == 0, err
+    assert (out / "mesh.json").is_file() and not list(tmp_path.glob(".partial-*"))
+
+
+@pytest.mark.parametrize("out,msg", [("/proc/polypore-out", "cannot create the output folder"),
+                                     ("/proc/self/status", "not a directory"),
+                                     ("/proc/self", "not written by polypore")])
+def test_proc_paths_are_refused(tiny, cli, monkeypatch, out, msg):
+    if not os.path.isdir("/proc/self"):
+        pytest.skip("no /proc")
+    _no_work(monkeypatch)
+    code, _, err = cli("run", str(tiny), "--out", out, "--force")
+    assert code == 2 and "--out" in err and msg in err, err
+
+
+def test_full_disk_during_the_run_fails_cleanly(tmp_path, tiny, cli, monkeypatch):
+    """ENOSPC while the run writes its files: exit 1 naming the folder, failed.json in place of
+    the previous result, no staging folder, nothing that looks complete."""
+    import errno
+
+    from polypore.io import atomic
+
+    out = tmp_path / "out"
+    _old_result(out)
+    real = atomic._fsync
+
+    def full(file):
+        if atomic.STAGE_PREFIX in str(file) and file.name.startswith(".fractures.csv"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(file))
+        return real(file)
+
+    monkeypatch.setattr(atomic, "_fsync", full)
+    code, _, err = cli("run", str(tiny), "--out", str(out), "--force")
+    assert code == 1 and "run failed" in err and str(out) in err and "No space left on device" in err, err
+    assert "Traceback" not in err
+    assert _visible(out) == ["failed.json"]
+    assert "No space left" in json.loads((out / "failed.json").read_text())["error"]
+    assert not list(tmp_path.glob(".partial-*"))
+
+
+def test_full_disk_while_moving_the_results_in_leaves_no_half_result(tmp_path, tiny, cli, monkeypatch):
+    """The move into the folder (a copy across file systems) can fill the disk too: what was moved
+    is removed again, failed.json tells why."""
+    import errno
+    import shutil
+
+    from polypore.io import atomic
+
+    out = tmp_path / "out"
+    real = shutil.move
+    moved = []
+
+    def move(src, dst):
+        if len(moved) == 3:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), dst)
+        moved.append(dst)
+        return real(src, dst)
+
+    monkeypatch.setattr(atomic.shutil, "move", move)
+    code, _, err = cli("run", str(tiny), "--out", str(out))
+    assert code == 1 and str(out) in err and "No space left on device" in err, err
+    assert _visible(out) == ["failed.json"]
+    assert not list(tmp_path.glob(".partial-*"))

@@ -19,6 +19,7 @@ no command deletes a file it did not write.
 
 from __future__ import annotations
 
+import errno
 import json
 import logging
 import os
@@ -31,7 +32,7 @@ from pathlib import Path
 from typing import Iterator
 
 from .. import __version__
-from ..core.errors import InputError
+from ..core.errors import InputError, RunError
 
 try:
     import fcntl
@@ -50,6 +51,8 @@ MARKER = ".polypore-run.json"
 # locked by the run that owns the folder (see _locked); never deleted
 LOCK = ".polypore-lock"
 log = logging.getLogger("polypore")
+# errors of writing, not of the run: a full disk, a quota, a file system remounted read-only
+_WRITE_ERRORS = {errno.ENOSPC, errno.EFBIG, errno.EROFS} | ({errno.EDQUOT} if hasattr(errno, "EDQUOT") else set())
 _ACTIVE: set[Path] = set()
 
 
@@ -346,9 +349,13 @@ def _locked(out: Path, option: str) -> Iterator[None]:
     """
     try:
         out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise _os_error(option, f"create the output folder {str(out)!r}", exc) from None
+    try:
         fd = os.open(out / LOCK, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
     except OSError as exc:
-        raise _os_error(option, f"write in {str(out)!r}", exc) from None
+        # a read-only folder or file system: found here, before any of the run's work
+        raise _os_error(option, f"write in the output folder {str(out)!r}", exc) from None
     try:
         if fcntl is not None:
             try:
@@ -465,6 +472,15 @@ def run_directory(out, *, force: bool = False, option: str = "--out") -> Iterato
                     raise _os_error(option, f"create the staging folder {str(stage)!r}", exc) from None
                 yield stage
                 _publish(stage, out, option)
+            except OSError as exc:
+                if exc.errno not in _WRITE_ERRORS:
+                    _fail(out, exc)
+                    raise
+                # a full disk (or one that turned read-only) mid-run: the run failed, say where
+                err = RunError(f"cannot write the results into {str(out)!r}: {exc.strerror or exc}; free some "
+                               f"space there or choose another {option}")
+                _fail(out, err)
+                raise err from exc
             except BaseException as exc:
                 _fail(out, exc)
                 raise
