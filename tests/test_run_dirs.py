@@ -89,7 +89,8 @@ def test_signal_leaves_only_failed_json(tmp_path, tiny, sig, status, reason):
     _, err = proc.communicate(timeout=60)
     assert proc.returncode == status, err
     assert "Traceback" not in err
-    assert err.strip().splitlines() == [f"polypore: {reason}; wrote {out / 'failed.json'}"]
+    assert err.strip().splitlines() == [f"polypore: {sig.name} received; stopping after the current solve...",
+                                        f"polypore: {reason}; wrote {out / 'failed.json'}"]
     assert _visible(out) == ["failed.json"]
     failed = json.loads((out / "failed.json").read_text())
     assert failed["error"] == reason and failed["signal"] == sig.name
@@ -490,3 +491,55 @@ def test_full_disk_while_moving_the_results_in_leaves_no_half_result(tmp_path, t
     assert code == 1 and str(out) in err and "No space left on device" in err, err
     assert _visible(out) == ["failed.json"]
     assert not list(tmp_path.glob(".partial-*"))
+
+
+# the run's solve replaced by a native call that ignores signals and holds no GIL for 5 s:
+# pthread_mutex_lock on a mutex another thread holds (never interrupted by a signal)
+NATIVE_BLOCK = """
+import ctypes, sys, threading, time
+import polypore.runs.dispatch as dispatch
+libc = ctypes.CDLL(None)
+mutex = ctypes.create_string_buffer(64)          # all zero: PTHREAD_MUTEX_INITIALIZER (glibc)
+locked = threading.Event()
+
+def holder():
+    libc.pthread_mutex_lock(mutex)
+    locked.set()
+    time.sleep(5)
+    libc.pthread_mutex_unlock(mutex)
+
+def run_case(case, stage):
+    threading.Thread(target=holder, daemon=True).start()
+    locked.wait()
+    print("SOLVING", file=sys.stderr, flush=True)
+    libc.pthread_mutex_lock(mutex)               # the "solve": 5 s in C, signals or not
+    return {}
+
+dispatch.run_case = run_case
+from polypore.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc mutex layout")
+def test_sigint_during_a_native_solve_is_acknowledged_at_once(tmp_path, tiny):
+    """issue 25: SIGINT while the main thread is in a long native call printed nothing until the
+    call returned. The acknowledgement comes at once; the run still stops after the call."""
+    out = tmp_path / "out"
+    proc = subprocess.Popen([sys.executable, "-c", NATIVE_BLOCK, "run", str(tiny), "--out", str(out)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    line = ""
+    while "SOLVING" not in line:
+        line = proc.stderr.readline()
+        assert line, "the run ended before its solve"
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    ack = proc.stderr.readline()
+    waited = time.monotonic() - t0
+    assert ack.strip() == "polypore: SIGINT received; stopping after the current solve...", ack
+    assert waited < 3.0 and proc.poll() is None        # printed while the native call still runs
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines() == [f"polypore: interrupted by the user (SIGINT); wrote {out / 'failed.json'}"]
+    assert json.loads((out / "failed.json").read_text())["signal"] == "SIGINT"
