@@ -188,3 +188,10 @@ def test_nested_override_is_refused(tmp_path, cli):
     assert code == 2 and "--set:" in err and "too deeply" in err, err
     code, _, err = cli("run", str(case), "--out", str(tmp_path / "o"), "--set", f"x={_nested(40)}")
     assert code == 2 and "--set overrides nests" in err, err
+
+
+def test_case_path_too_long(tmp_path, cli):
+    code, _, err = cli("run", str(tmp_path / ("c" * 300)))
+    assert code == 2 and "case: case file" in err and "File name too long" in err, err
+    code, _, err = cli("run", str(tmp_path / ("c" * 300 + ".toml")))
+    assert code == 2 and "File name too long" in err, err

@@ -104,6 +104,14 @@ def _with_override(exc: InputError, overrides) -> InputError:
     return exc
 
 
+def _exists(path: Path, file: bool = False) -> bool:
+    """Path.exists / is_file, but a name the system cannot look up (over 255 bytes) is an InputError."""
+    try:
+        return path.is_file() if file else path.exists()
+    except OSError as exc:
+        raise InputError("case", f"case file {str(path)!r} cannot be read: {exc.strerror or exc}") from None
+
+
 def load_case(name_or_path: str, overrides: Iterable[str] = ()) -> CaseFile:
     """Load a built-in case by name or a TOML file by path, apply ``KEY=VALUE`` overrides and
     validate the result (InputError naming the field)."""
@@ -114,8 +122,8 @@ def load_case(name_or_path: str, overrides: Iterable[str] = ()) -> CaseFile:
         raw = (resources.files(CASES) / DATA / f"{name_or_path}.toml").read_bytes()
         data = _read_toml(raw, f"built-in case {name_or_path!r}")
         source = f"builtin:{name_or_path}"
-    elif path.suffix == ".toml" or path.exists():
-        if not path.is_file():
+    elif path.suffix == ".toml" or _exists(path):
+        if not _exists(path, file=True):
             raise InputError("case", f"case file {str(path)!r} does not exist; give a built-in case name "
                              f"({', '.join(builtin_names())}) or the path of a TOML case file")
         try:
