@@ -147,3 +147,51 @@ def test_non_finite_numbers_name_the_field(tmp_path, cli, override, field):
     code, _, err = cli("run", str(case), "--out", str(tmp_path / "o"), "--set", override)
     assert code == 2 and f"{field}: must be a finite number" in err, err
     assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("command", [["cases"], ["schema"]])
+def test_closed_pipe_exits_quietly(command):
+    """issue 25: `polypore cases | head -1` (or `| grep -q`) ended in a BrokenPipeError traceback."""
+    import os
+
+    r, w = os.pipe()
+    os.close(r)                       # the reader is gone before polypore writes a byte
+    try:
+        proc = subprocess.run([sys.executable, "-m", "polypore", *command], stdout=w, stderr=subprocess.PIPE,
+                              text=True, timeout=60)
+    finally:
+        os.close(w)
+    assert proc.returncode == 0 and proc.stderr == "", proc.stderr
+
+
+def _nested(depth):
+    return "[" * depth + "]" * depth
+
+
+@pytest.mark.parametrize("body,where", [
+    (f"x = {_nested(100_000)}\n", "too deeply for the TOML reader"),        # RecursionError in tomllib
+    ("x = " + "{a = " * 5000 + "1" + "}" * 5000 + "\n", "too deeply for the TOML reader"),
+    ("[" + ".".join(["a"] * 3000) + "]\nv = 1\n", "33 or more levels deep"),  # parsed, too deep to use
+])
+def test_nested_toml_bomb_is_refused(tmp_path, cli, body, where):
+    case = tmp_path / "bomb.toml"
+    case.write_text('name = "bomb"\n' + body)
+    code, _, err = cli("run", str(case), "--out", str(tmp_path / "o"))
+    assert code == 2 and "case:" in err and str(case) in err and where in err, err
+    assert "Traceback" not in err and not (tmp_path / "o").exists()
+
+
+def test_nested_override_is_refused(tmp_path, cli):
+    case = tmp_path / "t.toml"
+    case.write_text(STATIC_2D)
+    code, _, err = cli("run", str(case), "--out", str(tmp_path / "o"), "--set", f"x={_nested(100_000)}")
+    assert code == 2 and "--set:" in err and "too deeply" in err, err
+    code, _, err = cli("run", str(case), "--out", str(tmp_path / "o"), "--set", f"x={_nested(40)}")
+    assert code == 2 and "--set overrides nests" in err, err
+
+
+def test_case_path_too_long(tmp_path, cli):
+    code, _, err = cli("run", str(tmp_path / ("c" * 300)))
+    assert code == 2 and "case: case file" in err and "File name too long" in err, err
+    code, _, err = cli("run", str(tmp_path / ("c" * 300 + ".toml")))
+    assert code == 2 and "File name too long" in err, err

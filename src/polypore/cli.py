@@ -60,7 +60,8 @@ def _on_signal(signum, frame):
 def _signals_raise():
     """While a command runs, SIGINT and SIGTERM raise KeyboardInterrupt and :class:`Terminated`
     and are remembered. Only default dispositions are replaced: a caller that ignores a signal
-    (a background job ignores SIGINT) or handles it keeps its choice."""
+    (a background job ignores SIGINT) or handles it keeps its choice. Each signal is also
+    acknowledged at once on stderr (:func:`_acknowledge`)."""
     _SIGNALLED.clear()
     previous = {}
     try:
@@ -70,10 +71,70 @@ def _signals_raise():
     except ValueError:  # not the main thread: signals cannot be handled here
         pass
     try:
-        yield
+        with _acknowledge(set(previous)):
+            yield
     finally:
         for sig, handler in previous.items():
             signal.signal(sig, handler)
+
+
+@contextmanager
+def _acknowledge(signals: set):
+    """Print "<SIG> received; stopping after the current solve..." as soon as one of ``signals``
+    arrives, even while the main thread is inside a long native call (a sparse factorisation).
+
+    Python runs its handler only when the main thread is back in bytecode, which can be minutes
+    later. The C-level handler writes the signal's number to the wakeup fd at once
+    (:func:`signal.set_wakeup_fd`); a thread blocked on it prints the line. That thread needs
+    the GIL: solvers that release it (SuperLU, PARDISO through ctypes) let it print at once,
+    one that holds it delays the line until it returns. The line is printed before the
+    command's last message: leaving the block drains the pipe first.
+    """
+    import os
+    import threading
+
+    if not signals:
+        yield
+        return
+    r, w = os.pipe()
+    os.set_blocking(w, False)      # set_wakeup_fd requires it: the C handler must never block
+    try:
+        old = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+    except ValueError:  # pragma: no cover - not the main thread
+        os.close(r)
+        os.close(w)
+        yield
+        return
+    if old != -1:       # someone else's wakeup fd (an event loop): theirs to keep
+        signal.set_wakeup_fd(old)
+        os.close(r)
+        os.close(w)
+        yield
+        return
+
+    def watch():
+        told = set()
+        while data := os.read(r, 64):
+            for sig in data:
+                if sig in signals and sig not in told:
+                    told.add(sig)
+                    try:
+                        sys.stderr.write(f"polypore: {signal.Signals(sig).name} received; stopping after the "
+                                         "current solve...\n")
+                        sys.stderr.flush()
+                    except (OSError, ValueError):
+                        pass
+
+    thread = threading.Thread(target=watch, name="polypore-signals", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        signal.set_wakeup_fd(-1)
+        os.close(w)                 # the thread reads what is left, then end of file
+        thread.join(timeout=2.0)
+        if not thread.is_alive():
+            os.close(r)
 
 
 def _check_case_folder(args, out: Path) -> None:
@@ -335,7 +396,8 @@ def _case_arguments(p, default_out: str) -> None:
     p.add_argument("--out", metavar="DIR", help=f"output directory (default: {default_out})")
     p.add_argument("--set", metavar="KEY=VALUE", action="append", help="override a case field, e.g. mesh.size=0.1")
     p.add_argument("--force", action="store_true", help="replace a previous polypore result in the output "
-                   "directory (a folder of other files is refused)")
+                   "directory: only what polypore wrote there is deleted, a folder holding anything else is "
+                   "refused")
     p.add_argument("--no-limits", action="store_true", help="run even when the estimated cells, time steps or "
                    "memory exceed the machine or sane bounds")
 
@@ -401,7 +463,9 @@ def main(argv=None) -> int:
         return 2
     try:
         with _signals_raise():
-            return args.func(args)
+            status = args.func(args)
+            sys.stdout.flush()   # a closed pipe raises here, inside the handlers below, not at exit
+            return status
     except InputError as exc:
         if _is_root():                  # distributed: every rank raises the same, rank 0 reports
             print(f"polypore: error: {exc}", file=sys.stderr)
@@ -410,6 +474,14 @@ def main(argv=None) -> int:
         if _is_root():
             print(f"polypore: run failed: {exc}", file=sys.stderr)
         return exc.exit_status
+    except BrokenPipeError:
+        # stdout piped into a program that stopped reading (`| head -1`, `| grep -q`): not an error
+        # of the run. Python's documented recipe: point stdout at devnull, so that the flush at exit
+        # does not raise again, and leave quietly (before `except Exception`, which would catch it)
+        import os
+
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except Exception:
         _abort_other_ranks()
         raise
@@ -420,12 +492,6 @@ def main(argv=None) -> int:
         what = "interrupted by the user (SIGINT)" if name == "SIGINT" else str(exc)
         print(f"polypore: {what}" + (f"; wrote {where}" if where else ""), file=sys.stderr)
         return 128 + signal.Signals[name].value
-    except BrokenPipeError:
-        # output piped into a program that stopped reading (e.g. `| head`): not an error of the run
-        import os
-
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
-        return 0
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -18,6 +18,7 @@ import numpy as np
 
 from ..core.errors import InputError, MeshError
 from ..core.ragged import INDEX, frozen
+from ..core.signals import rearm_signal_handlers
 from .build import _void_keys, mesh_from_cells
 from .mesh import Mesh
 
@@ -46,6 +47,7 @@ def gmsh_session(options: dict | None = None, model: str = "polypore"):
     if own:
         # no config files and no signal handler: quiet, reproducible, usable off the main thread
         gmsh.initialize([], readConfigFiles=False, interruptible=False)
+        rearm_signal_handlers()   # gmsh resets SIGTERM and SIGPIPE at C level (core/signals.py)
         previous_model = None
     else:
         previous_model = gmsh.model.getCurrent()
@@ -69,6 +71,7 @@ def gmsh_session(options: dict | None = None, model: str = "polypore"):
             pass
         if own:
             gmsh.finalize()
+            rearm_signal_handlers()
         else:
             gmsh.model.remove()
             if previous_model:

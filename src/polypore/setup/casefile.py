@@ -41,9 +41,32 @@ def _read_toml(raw: bytes, where: str) -> dict:
         raise InputError("case", f"{where} is not UTF-8 text (byte {exc.start}: {raw[exc.start:exc.start + 1]!r}); "
                          "save it as UTF-8") from None
     try:
-        return tomllib.loads(text)
+        data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise InputError("case", f"{where} is not valid TOML: {exc}") from None
+    except RecursionError:   # tomllib parses nested arrays and inline tables recursively
+        raise InputError("case", f"{where} nests arrays or tables too deeply for the TOML reader; a case "
+                         f"file needs at most {MAX_DEPTH} levels") from None
+    _check_depth(data, where)
+    return data
+
+
+# deeper than any case file needs (a few levels), shallow enough that everything reading the data
+# recursively (validation, to_toml) stays far from Python's recursion limit
+MAX_DEPTH = 32
+
+
+def _check_depth(data, where: str) -> None:
+    """InputError if ``data`` nests tables or arrays more than MAX_DEPTH levels (checked without
+    recursion: the data may be as deep as the parser allows)."""
+    stack = [(data, 1)]
+    while stack:
+        value, depth = stack.pop()
+        if depth > MAX_DEPTH:
+            raise InputError("case", f"{where} nests tables or arrays {MAX_DEPTH + 1} or more levels deep; "
+                             f"a case file needs at most {MAX_DEPTH}")
+        children = value.values() if isinstance(value, dict) else value
+        stack.extend((v, depth + 1) for v in children if isinstance(v, (dict, list)))
 
 
 @dataclass
@@ -81,6 +104,14 @@ def _with_override(exc: InputError, overrides) -> InputError:
     return exc
 
 
+def _exists(path: Path, file: bool = False) -> bool:
+    """Path.exists / is_file, but a name the system cannot look up (over 255 bytes) is an InputError."""
+    try:
+        return path.is_file() if file else path.exists()
+    except OSError as exc:
+        raise InputError("case", f"case file {str(path)!r} cannot be read: {exc.strerror or exc}") from None
+
+
 def load_case(name_or_path: str, overrides: Iterable[str] = ()) -> CaseFile:
     """Load a built-in case by name or a TOML file by path, apply ``KEY=VALUE`` overrides and
     validate the result (InputError naming the field)."""
@@ -91,8 +122,8 @@ def load_case(name_or_path: str, overrides: Iterable[str] = ()) -> CaseFile:
         raw = (resources.files(CASES) / DATA / f"{name_or_path}.toml").read_bytes()
         data = _read_toml(raw, f"built-in case {name_or_path!r}")
         source = f"builtin:{name_or_path}"
-    elif path.suffix == ".toml" or path.exists():
-        if not path.is_file():
+    elif path.suffix == ".toml" or _exists(path):
+        if not _exists(path, file=True):
             raise InputError("case", f"case file {str(path)!r} does not exist; give a built-in case name "
                              f"({', '.join(builtin_names())}) or the path of a TOML case file")
         try:
@@ -111,6 +142,8 @@ def load_case(name_or_path: str, overrides: Iterable[str] = ()) -> CaseFile:
     data = copy.deepcopy(data)
     for item in overrides:
         apply_override(data, item)
+    if overrides:
+        _check_depth(data, "the case with its --set overrides")
     case = CaseFile(str(data.get("name", path.stem)), source, data, overrides)
     try:
         case.spec
@@ -134,6 +167,9 @@ def _parse_value(text: str) -> Any:
         return tomllib.loads(f"v = {text}")["v"]
     except tomllib.TOMLDecodeError:
         return text  # a bare word or an expression: keep it as a string
+    except RecursionError:
+        raise InputError("--set", f"the value {text[:40]!r}... nests arrays or tables too deeply "
+                         f"(at most {MAX_DEPTH} levels)") from None
 
 
 def apply_override(data: dict, item: str) -> None:
