@@ -66,5 +66,5 @@ def test_emerald_case_runs_one_step(tmp_path):
     out = tmp_path / "o"
     assert main(["run", "emerald-injection", "--out", str(out), "--set", "time.end=86400"]) == 0
     s = json.loads((out / "summary.json").read_text())
-    assert s["mesh"]["fracture_faces"] == 249 and len(s["steps"]) == 1        # 281 without snapping
+    assert s["mesh"]["fracture_faces"] == 279 and len(s["steps"]) == 1        # 281 without snapping, 249 unbounded
     assert (out / "solution.pvd").is_file() and (out / "fractures_0001.vtu").is_file()

@@ -462,16 +462,23 @@ def _exact(name, fm, data: FlowData, K, ap, cols, fvars):
 
 
 def well_cells(mesh, well, field: str) -> np.ndarray:
-    """Mesh cells of a ``[[flow.wells]]`` block: its column (i, j) and layers k1...k2 (1-based)."""
+    """Mesh cells of a ``[[flow.wells]]`` block: its column (i, j) and layers k1...k2 (1-based, of
+    the grid as given: with ``mesh.refine`` the well is the column of children holding the old
+    column's centre, through all the children of its layers)."""
+    from ..mesh.cornerpoint.refine import centre_child, child_range
+    from .meshing import cornerpoint_refinement
+
     grid, info = _grid(mesh, f"{field}.column")
-    nx, ny, nz = grid.dims
+    ri, rj, rk = cornerpoint_refinement(mesh)
+    nx, ny, nz = grid.dims[0] // ri, grid.dims[1] // rj, grid.dims[2] // rk
     i, j = (int(a) for a in well.column)
     if not (1 <= i <= nx and 1 <= j <= ny):
         raise InputError(f"{field}.column", f"[{i}, {j}] lies outside the grid: i in 1 ... {nx}, j in 1 ... {ny}")
     k1, k2 = (1, nz) if well.layers is None else (int(a) for a in well.layers)
     if k2 > nz:
         raise InputError(f"{field}.layers", f"[{k1}, {k2}] goes below the grid's {nz} layers")
-    cells = info.cells_in(i - 1, j - 1, (k1 - 1, k2 - 1))
+    K1, K2 = child_range(k1, k2, rk)
+    cells = info.cells_in(int(centre_child(i - 1, ri)), int(centre_child(j - 1, rj)), (K1 - 1, K2 - 1))
     if cells.size == 0:
         raise InputError(f"{field}.column", f"column [{i}, {j}], layers {k1} ... {k2}, has no active cell")
     return cells

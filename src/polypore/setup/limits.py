@@ -4,7 +4,8 @@ the case file before any work starts, and refused when beyond the machine or san
 The estimates are rough (within a factor 2 of the built-in meshes, tests/test_limits.py) but
 cheap: cells from the domain's measure and the mesh sizes (a graded simplicial mesh has about
 c_d/h(r)^d cells per unit measure, h growing from the fracture size by ``grading`` per unit
-distance r from the fracture), memory from measured bytes per cell of the built-in runs. They
+distance r from the fracture; a corner-point grid's nx·ny·nz from its header or ``mesh.cells``,
+times ``mesh.refine``), memory from measured bytes per cell of the built-in runs. They
 only have to tell a run that fits from one that tries to allocate terabytes (``time.step =
 1e-12`` over a year, ``convergence --levels 30``). A mesh file's cells are not estimated.
 """
@@ -164,12 +165,49 @@ def estimate_cells(spec) -> tuple[float, str]:
         return math.inf, "mesh.size"
 
 
+def grdecl_header_dims(path, max_lines: int = 1_000_000):
+    """(nx, ny, nz) of the SPECGRID (or DIMENS) record of a GRDECL file, read from its first
+    ``max_lines`` lines (not from INCLUDE files); None when not found there."""
+    kw = None
+    words: list = []
+    try:
+        with open(path, errors="replace") as fh:
+            for n, line in enumerate(fh):
+                if n >= max_lines:
+                    return None
+                line = line.split("--", 1)[0]
+                if kw is None:
+                    w = line.strip().upper()
+                    if w in ("SPECGRID", "DIMENS"):
+                        kw = w
+                    continue
+                words += line.replace("/", " / ").split()
+                if "/" in words or len(words) >= 3:
+                    break
+    except OSError:
+        return None
+    try:
+        dims = tuple(int(w) for w in words[:3])
+    except ValueError:
+        return None
+    return dims if len(dims) == 3 and min(dims) >= 1 else None
+
+
 def _cells(spec) -> tuple[float, str]:
     m = spec.mesh
-    if m.generator in ("file", "grdecl"):
+    refine = math.prod(getattr(m, "refine", None) or (1, 1, 1))
+    rfield = "mesh.refine" if refine > 1 else None
+    if m.generator == "grdecl":        # nx·ny·nz of the file's header (unknown in an INCLUDE file)
+        from .meshing import grdecl_path
+        try:
+            dims = grdecl_header_dims(grdecl_path(m.file, spec.base_dir))
+        except InputError:
+            dims = None
+        return (math.nan if dims is None else float(math.prod(dims)) * refine), rfield or "mesh.file"
+    if m.generator == "file":
         return math.nan, "mesh.file"
     if m.generator == "cornerpoint":   # at most nx·ny·nz (inactive and pinched-out cells are left out)
-        return float(math.prod(m.cells)), "mesh.cells"
+        return float(math.prod(m.cells)) * refine, rfield or "mesh.cells"
     d = len(m.lower)
     extent = [hi - lo for lo, hi in zip(m.lower, m.upper)]
     volume = math.prod(extent)

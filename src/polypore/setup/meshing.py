@@ -24,7 +24,8 @@ The tables, their keys and defaults are in :mod:`polypore.setup.schema.geometry`
     # or a corner-point grid (docs/cornerpoint.md): generator = "grdecl" with file = "model.grdecl",
     # or generator = "cornerpoint" with cells, extent, top, dip and [[mesh.faults]]; its boundary
     # parts are west, east, south, north, top, bottom (and internal), and [[fractures]] select faults:
-    # name = "F1", fault = "F1" (default: the name); unselected faults stay bonded
+    # name = "F1", fault = "F1" (default: the name); unselected faults stay bonded; refine = [ni, nj, nk]
+    # splits every grid cell along its pillars (mesh/cornerpoint/refine.py)
 
     [[boundaries]]                  # optional extra boundary parts: the faces of part `on` whose
     name = "injection"              # centroid lies in the box (e.g. the reservoir's face on xmin)
@@ -281,6 +282,7 @@ def _file_mesh(case: CaseFile, spec, t0: float) -> FracturedMesh:
 
 # -- corner-point grids --------------------------------------------------------------------------
 _CORNERPOINT: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+_REFINED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
 def cornerpoint_of(mesh):
@@ -313,18 +315,29 @@ def grdecl_path(file: str, base_dir: str | None) -> Path:
                      "the case file's folder)")
 
 
+def cornerpoint_refinement(mesh) -> tuple[int, int, int]:
+    """(r_i, r_j, r_k) of ``mesh.refine`` the corner-point mesh was built with ((1, 1, 1) if none):
+    the grid of :func:`cornerpoint_of` is the refined one, the case's cell indices (wells) are
+    the file's."""
+    return _REFINED.get(mesh, (1, 1, 1))
+
+
 def _cornerpoint_grid(spec):
-    """The case's corner-point grid: read from the GRDECL file or generated."""
+    """The case's corner-point grid: read from the GRDECL file or generated, then refined by
+    ``mesh.refine``."""
     from ..mesh.cornerpoint import FaultSpec, generate_grid, read_grdecl
+    from ..mesh.cornerpoint.refine import refine_grid
 
     m = spec.mesh
     if m.generator == "grdecl":
-        return read_grdecl(grdecl_path(m.file, spec.base_dir))
-    nx, ny, nz = (int(c) for c in m.cells)
-    faults = [FaultSpec(f.axis, int(f.index), float(f.throw), start=None if f.start is None else int(f.start),
-                        stop=None if f.stop is None else int(f.stop), name=f.name) for f in m.faults]
-    return generate_grid(nx, ny, nz, extent=tuple(m.extent), top=m.top, dip=m.dip, faults=faults,
-                         pinchout=[int(k) - 1 for k in (m.pinchout or [])], inactive=m.inactive, seed=m.seed)
+        grid = read_grdecl(grdecl_path(m.file, spec.base_dir))
+    else:
+        nx, ny, nz = (int(c) for c in m.cells)
+        faults = [FaultSpec(f.axis, int(f.index), float(f.throw), start=None if f.start is None else int(f.start),
+                            stop=None if f.stop is None else int(f.stop), name=f.name) for f in m.faults]
+        grid = generate_grid(nx, ny, nz, extent=tuple(m.extent), top=m.top, dip=m.dip, faults=faults,
+                             pinchout=[int(k) - 1 for k in (m.pinchout or [])], inactive=m.inactive, seed=m.seed)
+    return refine_grid(grid, m.refine)
 
 
 def _selected_faults(spec, info) -> dict:
@@ -366,4 +379,7 @@ def _cornerpoint_mesh(spec, t0: float) -> FracturedMesh:
         fm = _assign_regions(fm, regions)
     fm = _boundary_parts(spec, fm)
     _CORNERPOINT[fm.mesh] = (grid, info)
+    refine = tuple(int(r) for r in m.refine)
+    if refine != (1, 1, 1):
+        _REFINED[fm.mesh] = refine
     return fm

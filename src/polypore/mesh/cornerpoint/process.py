@@ -56,7 +56,7 @@ from .conform import carriers, insert_edge_nodes, orient_loops
 from .faults import detect_faults
 from .horizontal import horizontal_faces
 from .info import BOUNDARY_NAMES, FACE_I, FACE_J, FACE_K, CornerPointInfo
-from .nodes import SNAP, cell_name, pillar_nodes
+from .nodes import SNAP, VOLUME_CHANGE, cell_name, pillar_nodes
 from .overlap import lateral_faces, pair_pillars
 from .pillars import on_pillar, pillar_points, right_handed
 from .planar import pairs_may_warp, split_nonplanar_faces
@@ -68,7 +68,8 @@ __all__ = ["process_grid", "split_nonplanar_faces"]
 
 def process_grid(grid: CornerPointGrid, *, ztol: float | None = None, apply_mapaxes: bool = True,
                  origin="auto", nonplanar: str = "centre", regions: str | None = None,
-                 find_faults: bool = True, snap: float = SNAP) -> tuple[Mesh, CornerPointInfo]:
+                 find_faults: bool = True, snap: float = SNAP,
+                 max_volume_change: float = VOLUME_CHANGE) -> tuple[Mesh, CornerPointInfo]:
     """Turn a corner-point grid into an edge-conformal polytopal mesh.
 
     Parameters
@@ -100,11 +101,16 @@ def process_grid(grid: CornerPointGrid, *, ztol: float | None = None, apply_mapa
         Detect and name the faults (:func:`.faults.detect_faults`).
     snap : float
         Nodes of different columns on one pillar closer than ``snap`` × the mean thickness of
-        the thinnest cell touching them are merged (to their mean depth), so that displaced
-        columns whose corners nearly coincide do not produce sliver faces (thin triangles or
-        strips on faults, whose contact multipliers are poorly determined); default 0.2, 0
-        keeps every corner depth (the mesh then has the exact trilinear cell volumes). See
-        :func:`.nodes.snap_nodes`.
+        the thinnest cell touching them are merged (to their mean depth weighted by 1 / that
+        thickness), so that displaced columns whose corners nearly coincide do not produce
+        sliver faces (thin triangles or strips on faults, whose contact multipliers are poorly
+        determined), unless a cell at them would change its volume by more than
+        ``max_volume_change``; default 0.2, 0 keeps every corner depth (the mesh then has the
+        exact trilinear cell volumes). See :func:`.nodes.snap_nodes`.
+    max_volume_change : float
+        Bound of the snapping's change of any cell's (trilinear) volume, relative to it;
+        default 1e-3. ``inf``: no bound (the snapping of before issue 24, which changed
+        Emerald's cells by up to 6.6 %).
 
     Returns
     -------
@@ -127,7 +133,9 @@ def process_grid(grid: CornerPointGrid, *, ztol: float | None = None, apply_mapa
     right = right_handed(top, bot, nx, ny)
     if not (snap >= 0 and np.isfinite(snap)):
         raise InputError("snap", f"must be finite and ≥ 0, got {snap!r}")
-    pn = pillar_nodes(grid, ztol, snap)
+    if not max_volume_change >= 0:
+        raise InputError("max_volume_change", f"must be ≥ 0 (relative), got {max_volume_change!r}")
+    pn = pillar_nodes(grid, ztol, snap, None if max_volume_change == np.inf else max_volume_change)
     ci, cj, ck, nid, node_pillar, node_z = pn.ci, pn.cj, pn.ck, pn.nid, pn.node_pillar, pn.node_z
     nc = ci.size
     NT, NB = nid[..., 0], nid[..., 1]                        # (nc, di, dj) node ids

@@ -129,7 +129,8 @@ class Well(Table):
     """``[[flow.wells]]``: injection into the cells of one column of a corner-point grid (a vertical well)."""
 
     name: Text = Field(description="well name")
-    column: vector(2, "cell indices") = Field(description="[i, j] of the column (1-based, as in the GRDECL file)")
+    column: vector(2, "cell indices") = Field(description="[i, j] of the column (1-based, as in the GRDECL file; "
+                                              "with mesh.refine the file's indices still)")
     layers: vector(2, "layer numbers") | None = Field(None, description="[k1, k2], the perforated layers "
                                                       "(1-based, inclusive; default: all)")
     rate: Expr | None = Field(None, description="injected volume rate (m³/s; < 0 produces), an expression of t")

@@ -23,9 +23,9 @@ GENERATOR_KEYS = {
     "voronoi": _BOX | {"size"},
     "agglomerated": _BOX | {"size", "fracture_size", "grading", "rounds"},
     "file": {"file"},
-    "grdecl": {"file", "nonplanar", "region_keyword", "snap"},
+    "grdecl": {"file", "nonplanar", "region_keyword", "snap", "refine"},
     "cornerpoint": {"cells", "extent", "top", "dip", "faults", "pinchout", "inactive", "seed", "nonplanar",
-                    "region_keyword", "snap"},
+                    "region_keyword", "snap", "refine"},
 }
 Coordinates = vector((2, 3), "coordinates (m)")
 
@@ -87,6 +87,10 @@ class Mesh(Table):
                                        "closer on a pillar than snap × the thinnest touching cell's thickness are "
                                        "merged at their mean depth, so that fault faces are not slivers (0: the "
                                        "grid's corners exactly; docs/cornerpoint.md, 'Sliver fault faces')")
+    refine: vector(3, "positive integers") = Field([1, 1, 1], description="grdecl, cornerpoint: [ni, nj, nk], "
+                                                   "every cell split into ni × nj × nk cells along its pillars "
+                                                   "(faults, cell keywords and wells follow; docs/cornerpoint.md, "
+                                                   "'Refinement')")
     region_keyword: Text | None = Field(None, description="grdecl, cornerpoint: integer cell keyword (e.g. "
                                         "FACIES) whose values v make the regions KEYWORD_v")
     extent: vector(3, "lengths (m)") | None = Field(None, description="cornerpoint: (Lx, Ly, H), horizontal "
@@ -108,6 +112,9 @@ class Mesh(Table):
             if self.file is None:
                 fail("is required with generator = \"file\" (the path of a Gmsh .msh file)", key="file")
             return self
+        if self.generator in CORNERPOINT and any(r < 1 or int(r) != r for r in self.refine):
+            fail(f"must be 3 positive integers [ni, nj, nk] (children per cell along i, j, k), got {self.refine}",
+                 key="refine")
         if self.generator == "grdecl":
             if self.file is None:
                 fail("is required with generator = \"grdecl\" (the path of a GRDECL file)", key="file")
