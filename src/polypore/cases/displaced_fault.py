@@ -33,8 +33,11 @@ Sign conventions on the fault (reported by :func:`fault_stress_changes`):
 * n = (sin θ, −cos θ), the unit normal pointing from the hanging wall into the footwall;
   e = (cos θ, sin θ), the up-dip unit tangent; s = y / sin θ, the along-dip coordinate (m).
 * Δσ_n = −n·Δσ·n: normal stress change, **compression positive** (total stress).
-* Δτ = e·Δσ·n: the up-dip component of the traction the footwall exerts on the hanging wall;
-  Δτ > 0 pushes the hanging wall up-dip (reverse-slip sense), Δτ < 0 down-dip (normal-slip sense).
+* Δτ = e·Δσ·n: the up-dip component of the traction the footwall exerts on the hanging wall.
+  Δτ > 0 is the shear a normal-faulting stress state puts on the fault (the footwall holds the
+  hanging wall up against sliding down-dip): it drives **normal slip** (hanging wall down-dip);
+  Δτ < 0 drives reverse slip. (Check: θ → 0, e = x̂, n = −ŷ gives Δτ = −Δσ_xy, and a simple
+  shear σ_xy > 0 moves the upper side, the hanging wall, along +x = up-dip.)
 * σ·n is continuous across the fault even where the fault bounds the reservoir (traction
   continuity), so Δσ_n and Δτ are single-valued there; only the along-fault normal stress e·σ·e
   jumps, by −2ηΔp from the non-reservoir to the reservoir side.
@@ -247,8 +250,8 @@ class DisplacedFault:
         """Normal and shear stress changes along the fault at elevations y (n,), m.
 
         Returns a dict of (n,) arrays: ``y``, ``s`` (along-dip coordinate y / sin θ, m),
-        ``sigma_n`` (Δσ_n, total, compression positive, Pa), ``tau`` (Δτ, Pa, positive up-dip on
-        the hanging wall), ``dp_fault`` (Δp_f, Pa), ``sigma_n_eff`` (Δσ_n − Δp_f, Pa), and the
+        ``sigma_n`` (Δσ_n, total, compression positive, Pa), ``tau`` (Δτ, Pa, positive: the
+        footwall's traction on the hanging wall points up-dip, normal-slip sense), ``dp_fault`` (Δp_f, Pa), ``sigma_n_eff`` (Δσ_n − Δp_f, Pa), and the
         along-fault normal stress ``sigma_ee_hw``, ``sigma_ee_fw`` (tension positive, Pa) on the
         hanging-wall and footwall sides (they differ by 2ηΔp where the fault bounds the reservoir).
         Δσ_n and Δτ are computed on the hanging-wall side; σ·n is continuous across the fault.
