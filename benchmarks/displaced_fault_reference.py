@@ -31,19 +31,22 @@ from polypore.cases.displaced_fault import DisplacedFault, scaling_factor
 from polypore.io.plots import _plt, save
 
 
-def curves(thickness, throw, dip, nu, alpha=1.0, dp=-1.0e6, n=1201):
+def curves(thickness, throw, dip, nu, alpha=1.0, dp=-1.0e6, n=301):
     """Normalised curves along the fault over y ∈ [−1.5 h, 1.5 h] (the corners themselves left out)."""
     g = DisplacedFault(thickness, throw, dip)
     y = np.linspace(-1.5 * thickness, 1.5 * thickness, n)
     # shift the grid so that no sample falls on a corner, and add samples approaching each corner
     # geometrically (1 mm to 10 m) so that the plots show the logarithmic peaks
-    near = (g.corners_y[:, None, None] + np.array([-1.0, 1.0])[:, None] * np.logspace(-3, 1, 40)).ravel()
+    near = (g.corners_y[:, None, None] + np.array([-1.0, 1.0])[:, None] * np.logspace(-3, 1, 17)).ravel()
     y = np.unique(np.concatenate([y + 0.37 * (y[1] - y[0]), near]))
     C = abs(scaling_factor(dp, alpha, nu))
     r = g.fault_stress_changes(y, dp, alpha, nu)
     coef = g.corner_log_coefficients(dp, alpha, nu) / C
-    return g, {"y": y.tolist(), "s": r["s"].tolist(), "sigma_n": (r["sigma_n"] / C).tolist(),
-               "sigma_n_eff": (r["sigma_n_eff"] / C).tolist(), "tau": (r["tau"] / C).tolist(),
+    def rounded(v):  # 7 significant digits: the JSON stays small
+        return [float(f"{x:.7g}") for x in v]
+
+    return g, {"y": rounded(y), "s": rounded(r["s"]), "sigma_n": rounded(r["sigma_n"] / C),
+               "sigma_n_eff": rounded(r["sigma_n_eff"] / C), "tau": rounded(r["tau"] / C),
                "corners_y": g.corners_y.tolist(), "log_coefficients": coef.tolist()}
 
 
@@ -92,7 +95,7 @@ def main(argv=None):
                  f"{first.throw if first else 0:g} m; a, b hanging wall bottom/top, c, d footwall bottom/top)", fontsize=10)
     a.out.mkdir(parents=True, exist_ok=True)
     save(fig, a.out / "displaced_fault_reference.png")
-    (a.out / "displaced_fault_reference.json").write_text(json.dumps(out, indent=1) + "\n")
+    (a.out / "displaced_fault_reference.json").write_text(json.dumps(out) + "\n")
     print("wrote", a.out / "displaced_fault_reference.png", a.out / "displaced_fault_reference.json")
 
 
