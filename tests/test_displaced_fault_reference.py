@@ -300,3 +300,17 @@ def test_depletion_shear_peaks_have_opposite_signs_at_inner_and_outer_corners():
         # injection flips every peak
         coef_inj = DisplacedFault(H_RES, t, 60.0).corner_log_coefficients(-DP, ALPHA, NU)
         assert np.allclose(coef_inj, -coef)
+
+
+@pytest.mark.parametrize("throw", [0.0, 50.0, 200.0, 320.0])
+@pytest.mark.parametrize("dip", [60.0, 90.0, 35.0])
+def test_explicit_fault_formulas(throw, dip):
+    g = DisplacedFault(H_RES, throw, dip)
+    y = np.linspace(-2 * H_RES, 2 * H_RES, 801) + 0.123
+    y = y[np.min(np.abs(y[:, None] - g.corners_y[None]), 1) > 1e-6]
+    sn, tau = g.fault_closed_form(y, DP, ALPHA, NU)
+    r = g.fault_stress_changes(y, DP, ALPHA, NU)
+    assert np.allclose(sn, r["sigma_n"], rtol=1e-10, atol=1e-9 * abs(DP))
+    assert np.allclose(tau, r["tau"], rtol=1e-10, atol=1e-9 * abs(DP))
+    with pytest.raises(ValueError):
+        DisplacedFault(H_RES, throw, dip, width=1e3).fault_closed_form(y, DP)

@@ -270,6 +270,28 @@ class DisplacedFault:
                 "sigma_ee_hw": np.einsum("i,nij,j->n", e, s_hw, e),
                 "sigma_ee_fw": np.einsum("i,nij,j->n", e, s_fw, e)}
 
+    def fault_closed_form(self, y, dp: float, alpha: float = 1.0, nu: float = 0.25) -> tuple[np.ndarray, np.ndarray]:
+        """Δσ_n and Δτ (Pa, conventions of the module) on the fault at elevations y (n,), m, from the
+        explicit fault formulas of the laterally infinite reservoir (``width`` must be None)::
+
+            L = ln(|y − y_a| |y − y_d| / (|y − y_b| |y − y_c|)),  k = χ_hw(y) + χ_fw(y),
+            Δσ_n = C (π sin²θ k − sinθ cosθ L),   Δτ = −C (π sinθ cosθ k + sin²θ L),
+
+        χ_hw = 1 on y_a < y < y_b (the fault bounds the hanging-wall block), χ_fw on y_c < y < y_d,
+        C = (1 − 2ν) α Δp / (2π (1 − ν)). Same values as :meth:`fault_stress_changes` (which sums
+        the edge terms); derivation in ``docs/displaced_fault_reference.md``.
+        """
+        if self.width is not None:
+            raise ValueError("the explicit fault formulas are for laterally infinite blocks (width=None)")
+        y = np.atleast_1d(np.asarray(y, float))
+        ya, yb, yc, yd = self.corners_y
+        th = np.radians(self.dip)
+        sn, cs = np.sin(th), np.cos(th)
+        L = np.log(np.abs(y - ya) * np.abs(y - yd) / (np.abs(y - yb) * np.abs(y - yc)))
+        k = ((y > ya) & (y < yb)).astype(float) + ((y > yc) & (y < yd))
+        C = scaling_factor(dp, alpha, nu)
+        return C * (np.pi * sn * sn * k - sn * cs * L), -C * (np.pi * sn * cs * k + sn * sn * L)
+
     def corner_log_coefficients(self, dp: float, alpha: float = 1.0, nu: float = 0.25) -> np.ndarray:
         """(4, 2) coefficients (Pa) of ln r in (Δσ_n, Δτ) on the fault near the corners y_a … y_d:
         Δσ_n ≈ A_n ln r + O(1), Δτ ≈ A_τ ln r + O(1) at a distance r from the corner along the fault.
