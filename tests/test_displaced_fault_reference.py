@@ -314,3 +314,49 @@ def test_explicit_fault_formulas(throw, dip):
     assert np.allclose(tau, r["tau"], rtol=1e-10, atol=1e-9 * abs(DP))
     with pytest.raises(ValueError):
         DisplacedFault(H_RES, throw, dip, width=1e3).fault_closed_form(y, DP)
+
+
+@pytest.mark.parametrize("throw, dip", [(50.0, 60.0), (200.0, 60.0), (0.0, 45.0), (300.0, 75.0)])
+def test_corner_point_grid_matches_the_geometry(throw, dip):
+    from polypore.cases.displaced_fault import displaced_fault_grid
+    from polypore.mesh.cornerpoint import process_grid
+
+    f = DisplacedFault(H_RES, throw, dip)
+    L, D, depth = 2000.0, 1500.0, 3000.0
+    grid = displaced_fault_grid(f, half_width=L, half_height=D, nx=16, nz_reservoir=4, nz_above=5, nz_below=5,
+                                depth=depth)
+    mesh, info = process_grid(grid, regions="RESERVOIR", snap=0.0)
+    geo = mesh.geometry
+    ly = 2 * L / 16
+    assert np.isclose(geo.cell_volume.sum(), 2 * L * 2 * D * ly, rtol=1e-12)
+    assert geo.face_nonplanarity.max() < 1e-12
+    res = mesh.cell_region == mesh.region_names.index("RESERVOIR_1")
+    fw = DisplacedFault(H_RES, throw, dip, width=L)
+    area = 2 * H_RES * L - f.cot * H_RES * throw
+    assert np.isclose(geo.cell_volume[res].sum(), area * ly, rtol=1e-12)
+    c = geo.cell_centroid
+    P = np.stack([c[:, 0], c[:, 2] + depth], -1)          # mesh z = −depth → elevation
+    assert (fw.inside(P) == res).all()
+    # the fault: on the plane x = y cot θ, normal ±(sin θ, 0, −cos θ), the whole slab height
+    fa = info.faults["F"]
+    fc = geo.face_centroid[fa]
+    assert np.abs(fc[:, 0] - (fc[:, 2] + depth) * f.cot).max() < 1e-9 * L
+    n3 = np.array([f.normal[0], 0.0, f.normal[1]])
+    assert np.allclose(np.abs(geo.face_normal[fa] @ n3), 1.0, atol=1e-12)
+    assert np.isclose(geo.face_area[fa].sum(), 2 * D / np.sin(np.radians(dip)) * ly, rtol=1e-12)
+    # lateral sides vertical (rollers), top and bottom flat
+    for name, x in (("west", -L), ("east", L)):
+        assert np.allclose(geo.face_centroid[info.boundary[name], 0], x) and \
+            np.allclose(np.abs(geo.face_normal[info.boundary[name], 0]), 1.0)
+    for name, z in (("top", D - depth), ("bottom", -D - depth)):
+        assert np.allclose(geo.face_centroid[info.boundary[name], 2], z)
+
+
+def test_corner_point_grid_rejects_crossing_pillars():
+    from polypore.cases.displaced_fault import displaced_fault_grid
+    from polypore.core.errors import InputError
+
+    with pytest.raises(InputError, match="pillars cross"):
+        displaced_fault_grid(DisplacedFault(H_RES, 50.0, 30.0), half_width=1000.0, half_height=1000.0)
+    with pytest.raises(InputError, match="even"):
+        displaced_fault_grid(DisplacedFault(H_RES, 50.0, 60.0), nx=15)

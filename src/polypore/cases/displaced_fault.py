@@ -320,3 +320,90 @@ class DisplacedFault:
                 out[hit, 0] += -(n @ S @ n)
                 out[hit, 1] += e @ S @ n
         return out
+
+
+def displaced_fault_grid(fault: DisplacedFault, *, half_width: float = 2000.0, half_height: float = 2000.0,
+                         nx: int = 40, nz_reservoir: int = 8, nz_above: int = 12, nz_below: int = 12,
+                         strike_length: float | None = None, depth: float = 3000.0):
+    """A corner-point grid of the displaced fault: a slab one cell thick along the strike.
+
+    Grid frame (GRDECL): x across the fault, y along the strike, depth positive downwards; the
+    module's elevation is y_elev = ``depth`` − depth (the reservoir's mid-depth at y_elev = 0, the
+    fault through x = 0 there). Pillars are straight and lie in x–depth planes: the pillar line
+    i = nx/2 follows the fault (x = y_elev cot θ), the others lean less and less towards the
+    lateral sides, where they are vertical (x = ∓half_width), so the lateral sides are planes for
+    rollers. Horizons are horizontal on each side of the fault: nz_above layers from the top
+    (y_elev = half_height) to the reservoir's top, nz_reservoir layers in the reservoir, nz_below
+    to the bottom (y_elev = −half_height); the hanging wall's reservoir lies at y_a … y_b, the
+    footwall's at y_c … y_d (the model's top and bottom stay flat). Every cell is a hexahedron
+    with planar faces; the reservoir cells tile the blocks of ``DisplacedFault(h, t, θ,
+    width=half_width)`` exactly.
+
+    Parameters
+    ----------
+    fault : DisplacedFault
+        Thickness, throw (< 2 half_height − h) and dip; its ``width`` is not used.
+    half_width, half_height : float, m
+        The slab spans x ∈ [−half_width, half_width], y_elev ∈ [−half_height, half_height];
+        pillars do not cross if half_height < half_width tan θ.
+    nx : int
+        Columns across (even: the fault is the pillar line nx/2).
+    nz_reservoir, nz_above, nz_below : int
+        Layers.
+    strike_length : float, m
+        Slab thickness along y (default half_width / nx · 2, one column's width).
+    depth : float, m
+        Depth of the reservoir's mid-plane.
+
+    Returns
+    -------
+    CornerPointGrid
+        dims (nx, 1, nz_above + nz_reservoir + nz_below), FAULTS record ``F`` on the pillar line
+        nx/2 over all layers, cell keyword RESERVOIR (1 in the reservoir, 0 elsewhere: use
+        ``regions="RESERVOIR"`` when processing) and PORO, NTG, PERMX/Y/Z, FIPNUM as the
+        generator's.
+    """
+    from ..core.errors import InputError
+    from ..mesh.cornerpoint.reader import CornerPointGrid
+
+    nx = int(nx)
+    if nx < 2 or nx % 2:
+        raise InputError("displaced_fault_grid.nx", f"must be even and ≥ 2, got {nx}")
+    L, D, h = float(half_width), float(half_height), float(fault.thickness)
+    cot = fault.cot
+    if D * cot >= L:
+        raise InputError("displaced_fault_grid", f"pillars cross: half_height {D} ≥ half_width tan θ = {L / cot:g}")
+    ya, yb, yc, yd = fault.corners_y
+    if min(ya, yc) <= -D or max(yb, yd) >= D:
+        raise InputError("displaced_fault_grid", "the reservoir must lie inside the slab")
+    ly = 2.0 * L / nx if strike_length is None else float(strike_length)
+    nz = int(nz_above) + int(nz_reservoir) + int(nz_below)
+    # pillars: x at elevation y is x0 + w cot θ y, w = 1 on the fault, 0 on the lateral sides
+    x0 = np.linspace(-L, L, nx + 1)
+    w = 1.0 - np.abs(x0) / L
+    ytop, ybot = D, -D
+    coord = np.zeros((nx + 1, 2, 6))
+    for j, yy in enumerate((0.0, ly)):
+        coord[:, j, 0], coord[:, j, 1], coord[:, j, 2] = x0 + w * cot * ytop, yy, depth - ytop
+        coord[:, j, 3], coord[:, j, 4], coord[:, j, 5] = x0 + w * cot * ybot, yy, depth - ybot
+
+    def horizons(bottom, top):
+        # elevations of the nz + 1 horizons of one side, top down
+        return np.concatenate([np.linspace(D, top, int(nz_above) + 1),
+                               np.linspace(top, bottom, int(nz_reservoir) + 1)[1:],
+                               np.linspace(bottom, -D, int(nz_below) + 1)[1:]])
+
+    side = np.where(np.arange(nx) < nx // 2, 0, 1)                       # 0 hanging wall, 1 footwall
+    H = np.stack([horizons(ya, yb), horizons(yc, yd)])                    # (2, nz + 1)
+    k = np.arange(2 * nz)
+    elev = H[side][:, (k // 2) + (k % 2)]                                 # (nx, 2nz): cell top/bottom
+    zcorn = np.repeat(depth - elev, 2, axis=0)[:, None, :] * np.ones((1, 2, 1))
+    res = np.zeros((nx, 1, nz))
+    res[:, :, int(nz_above):int(nz_above) + int(nz_reservoir)] = 1.0
+    kz = np.broadcast_to(np.arange(nz)[None, None, :], (nx, 1, nz))
+    props = {"RESERVOIR": res, "PORO": np.full((nx, 1, nz), 0.2), "NTG": np.ones((nx, 1, nz)),
+             "PERMX": np.full((nx, 1, nz), 100.0), "PERMY": np.full((nx, 1, nz), 100.0),
+             "PERMZ": np.full((nx, 1, nz), 10.0), "FIPNUM": (kz + 1).astype(float)}
+    p = nx // 2
+    return CornerPointGrid((nx, 1, nz), coord, zcorn, np.ones((nx, 1, nz), bool), None,
+                           {"F": [(p, p, 1, 1, 1, nz, "X")]}, props, "displaced-fault")
