@@ -325,12 +325,12 @@ def test_corner_point_grid_matches_the_geometry(throw, dip):
     L, D, depth = 2000.0, 1500.0, 3000.0
     grid = displaced_fault_grid(f, half_width=L, half_height=D, nx=16, nz_reservoir=4, nz_above=5, nz_below=5,
                                 depth=depth)
-    mesh, info = process_grid(grid, regions="RESERVOIR", snap=0.0)
+    mesh, info = process_grid(grid, regions="RESNUM", snap=0.0)
     geo = mesh.geometry
     ly = 2 * L / 16
     assert np.isclose(geo.cell_volume.sum(), 2 * L * 2 * D * ly, rtol=1e-12)
     assert geo.face_nonplanarity.max() < 1e-12
-    res = mesh.cell_region == mesh.region_names.index("RESERVOIR_1")
+    res = mesh.cell_region == mesh.region_names.index("RESNUM_1")
     fw = DisplacedFault(H_RES, throw, dip, width=L)
     area = 2 * H_RES * L - f.cot * H_RES * throw
     assert np.isclose(geo.cell_volume[res].sum(), area * ly, rtol=1e-12)
@@ -360,3 +360,38 @@ def test_corner_point_grid_rejects_crossing_pillars():
         displaced_fault_grid(DisplacedFault(H_RES, 50.0, 30.0), half_width=1000.0, half_height=1000.0)
     with pytest.raises(InputError, match="even"):
         displaced_fault_grid(DisplacedFault(H_RES, 50.0, 60.0), nx=15)
+
+
+def test_shipped_case_grid_and_a_coarse_run(tmp_path):
+    """The built-in case's GRDECL is displaced_fault_grid's; its static run sticks everywhere and,
+    on this coarse grid (25 m cells in the reservoir), gets the fault's plateau between the inner
+    corners and the far field. A sanity check, not the verification (which needs refinement)."""
+    import csv
+    from importlib.resources import files
+
+    from polypore.cases.displaced_fault import displaced_fault_grid
+    from polypore.cli import main
+    from polypore.mesh.cornerpoint import read_grdecl
+
+    f = DisplacedFault(200.0, 50.0, 60.0)
+    ref = displaced_fault_grid(f, half_width=2000.0, half_height=2000.0, nx=40, nz_reservoir=8, nz_above=10,
+                               nz_below=10, depth=3000.0)
+    got = read_grdecl(files("polypore.cases") / "data" / "displaced-fault.grdecl")
+    assert got.dims == ref.dims and dict(got.faults) == dict(ref.faults)
+    assert np.allclose(got.coord, ref.coord, rtol=0, atol=1e-7) and np.allclose(got.zcorn, ref.zcorn, rtol=0, atol=1e-7)
+    assert np.array_equal(got.properties["RESNUM"], ref.properties["RESNUM"])
+
+    assert main(["-q", "run", "displaced-fault", "--out", str(tmp_path / "r")]) == 0
+    rows = list(csv.DictReader(open(tmp_path / "r" / "fractures.csv")))
+    assert {r["state"] for r in rows} == {"stick"}
+    y = np.array([float(r["z"]) for r in rows]) + 3000.0
+    th = np.radians(60.0)
+    dln = np.array([float(r["lambda_n"]) for r in rows]) - (21e6 * np.sin(th) ** 2 + 30e6 * np.cos(th) ** 2)
+    dlt = np.array([float(r["lambda_t"]) for r in rows]) - 9e6 * np.sin(th) * np.cos(th)   # |λ_τ| − τ0
+    r = f.fault_stress_changes(y, -1e7, 1.0, 0.25)
+    C = abs(-1e7 * 0.5 / (2 * np.pi * 0.75))
+    mid, far = np.abs(y) < 20.0, np.abs(y) > 1000.0
+    assert mid.sum() == 2 and far.sum() >= 8
+    assert np.abs(dln[mid] - r["sigma_n_eff"][mid]).max() < 0.05 * np.abs(r["sigma_n_eff"][mid]).max()
+    assert np.abs(dlt[mid] - r["tau"][mid]).max() < 0.1 * np.abs(r["tau"][mid]).max()
+    assert np.abs(dln[far]).max() < 0.02 * C and np.abs(dlt[far]).max() < 0.02 * C

@@ -359,8 +359,8 @@ def displaced_fault_grid(fault: DisplacedFault, *, half_width: float = 2000.0, h
     -------
     CornerPointGrid
         dims (nx, 1, nz_above + nz_reservoir + nz_below), FAULTS record ``F`` on the pillar line
-        nx/2 over all layers, cell keyword RESERVOIR (1 in the reservoir, 0 elsewhere: use
-        ``regions="RESERVOIR"`` when processing) and PORO, NTG, PERMX/Y/Z, FIPNUM as the
+        nx/2 over all layers, cell keyword RESNUM (1 in the reservoir, 0 elsewhere: use
+        ``regions="RESNUM"`` when processing) and PORO, NTG, PERMX/Y/Z, FIPNUM as the
         generator's.
     """
     from ..core.errors import InputError
@@ -401,7 +401,8 @@ def displaced_fault_grid(fault: DisplacedFault, *, half_width: float = 2000.0, h
     res = np.zeros((nx, 1, nz))
     res[:, :, int(nz_above):int(nz_above) + int(nz_reservoir)] = 1.0
     kz = np.broadcast_to(np.arange(nz)[None, None, :], (nx, 1, nz))
-    props = {"RESERVOIR": res, "PORO": np.full((nx, 1, nz), 0.2), "NTG": np.ones((nx, 1, nz)),
+    # RESNUM: GRDECL keywords have at most 8 characters (the reader rejects longer ones)
+    props = {"RESNUM": res, "PORO": np.full((nx, 1, nz), 0.2), "NTG": np.ones((nx, 1, nz)),
              "PERMX": np.full((nx, 1, nz), 100.0), "PERMY": np.full((nx, 1, nz), 100.0),
              "PERMZ": np.full((nx, 1, nz), 10.0), "FIPNUM": (kz + 1).astype(float)}
     p = nx // 2
