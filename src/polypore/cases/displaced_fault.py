@@ -26,7 +26,8 @@ holds the reservoir for y_a ≤ y ≤ y_b, the footwall (right) for y_c ≤ y �
     y_c = −h/2 + t/2,  y_d = h/2 + t/2   (footwall: raised by t/2),
 
 h the reservoir thickness and t the throw (t > 0: normal-fault offset). Each block extends to
-infinity away from the fault (``width=None``, the paper's setting) or to x = ∓width.
+infinity away from the fault (``width=None``, laterally infinite as we understand the paper's
+setting) or to x = ∓width. :func:`displaced_fault_grid` builds the geometry as a corner-point slab.
 
 Sign conventions on the fault (reported by :func:`fault_stress_changes`):
 
@@ -37,7 +38,8 @@ Sign conventions on the fault (reported by :func:`fault_stress_changes`):
   Δτ > 0 is the shear a normal-faulting stress state puts on the fault (the footwall holds the
   hanging wall up against sliding down-dip): it drives **normal slip** (hanging wall down-dip);
   Δτ < 0 drives reverse slip. (Check: θ → 0, e = x̂, n = −ŷ gives Δτ = −Δσ_xy, and a simple
-  shear σ_xy > 0 moves the upper side, the hanging wall, along +x = up-dip.)
+  shear σ_xy > 0 moves the upper side, the hanging wall, along +x = up-dip: reverse sense,
+  Δτ < 0.)
 * σ·n is continuous across the fault even where the fault bounds the reservoir (traction
   continuity), so Δσ_n and Δτ are single-valued there; only the along-fault normal stress e·σ·e
   jumps, by −2ηΔp from the non-reservoir to the reservoir side.
