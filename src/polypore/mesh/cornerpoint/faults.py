@@ -8,7 +8,10 @@ other fault faces are grouped into connected fault surfaces, in map view: two pi
 carrying fault faces are connected through a pillar they share when that pillar carries
 exactly two of them (the fault goes on, possibly turning) or when they are collinear (at a T
 or X junction the straight branches go on, the others end). Groups are named ``fault_1``,
-``fault_2``, ... by their first face.
+``fault_2``, ... in the order of their smallest pillar pair, keyed by the (i, j) of its first
+pillar (then i pair before j pair): integers of the grid, so that the names do not change
+with the snapping or the ``nonplanar`` face option (which renumber the faces and may drop
+sliver faces of a fault, never its pillar pairs). A pillar pair belongs to one group only.
 
 Orientation (:func:`fractured_mesh`): n⁺ is made coherent along each connected surface
 (the + side stays on the same side of the fault trace through turns), then signed so that
@@ -41,6 +44,16 @@ def _pair_geometry(pairs: np.ndarray, nx: int, ny: int):
     j = np.where(is_i, pairs % ny, qj % (ny + 1))
     end = np.stack([np.stack([i, j], 1), np.stack([i + (~is_i), j + is_i], 1)], 1)    # (k, 2 ends, 2)
     return end, (~is_i).astype(np.int8)
+
+
+def pair_keys(pairs: np.ndarray, nx: int, ny: int) -> np.ndarray:
+    """(k,) int64 sort keys of pillar pairs: (i, j) of their first pillar, then i pair before j pair.
+
+    Integers of the grid only, so that the order of faults (their names) does not depend on
+    the face numbering or on floating-point geometry.
+    """
+    end, d = _pair_geometry(np.asarray(pairs, dtype=np.int64), nx, ny)
+    return (end[:, 0, 0] * (ny + 1) + end[:, 0, 1]) * 2 + d
 
 
 def _pair_graph(pairs: np.ndarray, nx: int, ny: int):
@@ -154,16 +167,19 @@ def detect_faults(mesh: Mesh, info, grid=None):
     if rest.size:
         pairs, inv = np.unique(info.face_pair[rest], return_inverse=True)
         a, b, _ = _pair_graph(pairs, nx, ny)
-        lab = _components(pairs.size, a, b)[inv]
-        first = np.full(lab.max() + 1, rest.size)
-        np.minimum.at(first, lab, np.arange(rest.size))
+        comp = _components(pairs.size, a, b)
+        lab = comp[inv]
+        # named in the order of their smallest pair key (integers of the grid: a face option or
+        # the snapping renumbers the faces and may drop sliver faces, never a fault's pairs)
+        first = np.full(comp.max() + 1, np.iinfo(np.int64).max)
+        np.minimum.at(first, comp, pair_keys(pairs, nx, ny))
         order = np.argsort(first)
         n = 0
-        for comp in order:
+        for c in order:                                     # one per fault (a handful)
             n += 1
             while f"fault_{n}" in faults:
                 n += 1
-            faults[f"fault_{n}"] = rest[lab == comp]
+            faults[f"fault_{n}"] = rest[lab == c]
     faults = {k: frozen(np.sort(v).astype(INDEX)) for k, v in faults.items()}
     from types import MappingProxyType
     return dataclasses.replace(info, faults=MappingProxyType(faults))
