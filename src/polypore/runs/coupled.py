@@ -38,7 +38,7 @@ from ..setup.casefile import CaseFile, load_case
 from ..setup.flow import well_cells
 from ..setup.meshing import build_fractured_mesh
 from ..setup.poromechanics import monitor_points, poro_setup
-from .common import RunClock
+from .common import RunClock, corner_point_faults
 from .march import march
 
 log = logging.getLogger("polypore")
@@ -49,6 +49,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
     fm = build_fractured_mesh(case)
     model, fs, ms = poro_setup(case, fm)
     mesh, net = fm.mesh, fm.network
+    faults = corner_point_faults(case, fm)
     g = mesh.geometry
     schedule = fs.schedule
     s_arc = arc_length(fm)
@@ -189,6 +190,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             "mesh": {"dim": mesh.dim, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
                      "fracture_faces": net.n_faces,
                      "unknowns": int(model.mech.free.size + model.n_ff * model.dim + model.flow_free.size)},
+            **({"faults": faults} if faults is not None else {}),
             "steps": steps,
             "energy_check": {"violations": violations, "steps_checked": len(energies)},
             "fracture_means": series,
