@@ -98,7 +98,9 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             write_fracture_vtu(stage / f"fractures_{k_out:04d}.vtu", fm, cell_data={
                 "jump": fq["jump"], "jump_n": fq["jump_n"], "jump_t": fq["jump_t"], "lambda": st.lam,
                 "lambda_n": fq["lambda_n"], "lambda_t": fq["lambda_t"], "state": fq["state"].astype(np.int32),
-                "aperture": fq["aperture"], "p_f": fq["p_f"]})
+                "aperture": fq["aperture"], "p_f": fq["p_f"],
+                # every step's onset (the recorder saw this time already): replots draw the same
+                "first_slip": recorder.onset.copy()})
             pvd.extend([(st.time, f"bulk_{k_out:04d}.vtu", 0), (st.time, f"fractures_{k_out:04d}.vtu", 1)])
             blocks.append(fracture_rows(n, st.time, net.names, net.fracture, g.face_centroid[net.faces], s_arc,
                                         model.mech.face_area, fq["jump"], model.mech.normal, st.lam,
@@ -133,8 +135,8 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                               else st.time, "faces": int(np.sum(st.state == SLIP)),
                               "first_slipping_faces": np.round(x, 3).tolist()[:20]})
 
+        record(state)                   # before the output: its VTU holds the onsets up to now
         output(0, 0, state)
-        record(state)
         k_out = [1]
 
         def step(st, ta, tb):
@@ -179,8 +181,8 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             _plot_safely("monitor", lambda: monitor_plots(stage, case.name, net, s_arc, monitor, snapshots,
                                                           onset.get("time"), tf, f"t ({tname})"))
         else:
-            fq = model.fracture_quantities(state)
-            last = {"time": state.time, "slip": slip_since_start(state), "state": fq["state"]}
+            # the face states and onsets are the recorder's (those of summary.json's series)
+            last = {"time": state.time, "slip": slip_since_start(state)}
             op = model.cell_pressure(state) - p0
             _plot_safely("3D monitor", lambda: write_3d_plots(stage, collect(
                 case.name, schedule.end, fm, model.mech.face_area, recorder, monitor, last, points, op)))
