@@ -73,6 +73,14 @@ def test_fault_figures_draw_the_summary(run):
     assert 0 < final["slip"] < final["faces"] and final["ever_slipped"] >= final["slip"]     # F1 slips here
     assert final["slip"] == s["steps"][-1]["slip"] and final["open"] == s["steps"][-1]["open"]
     check_against_summary(s, drawn, titles)
+    # the per-fault report of the corner-point grid: both faults, F2 bonded; vertical, F1 on an
+    # i pillar line (striking along y), F2 on a j line
+    f1, f2 = s["faults"]["F1"], s["faults"]["F2"]
+    assert f1["fracture"] == "F1" and f2["fracture"] is None and f1["faces"] == final["faces"]
+    assert f1["dip_deg"] == pytest.approx(90.0) and f2["dip_deg"] == pytest.approx(90.0)
+    assert f1["strike_deg"] % 180 == pytest.approx(0.0, abs=1e-9) and f2["strike_deg"] % 180 == pytest.approx(90.0)
+    # 1000 m long, 160 m stack less the 30 m throw (F2, which crosses it, changes it a little)
+    assert f1["cells"] == {"hanging_wall": 20, "footwall": 20} and 120e3 < f1["area_m2"] <= 130e3
 
 
 def test_replotted_fault_figures_draw_the_summary(run, tmp_path):
