@@ -57,6 +57,26 @@ def area_fractions(fracture, area, state, n_fractures: int) -> tuple[np.ndarray,
     return slip / safe, opn / safe
 
 
+def final_states(names, fracture, area, state, onset, time) -> dict:
+    """Fault -> {time, faces, open, stick, slip, slip_area_fraction, open_area_fraction,
+    ever_slipped} of face states (n_ff,) and onset times (n_ff,; NaN: never) at ``time``: the
+    one summary of a fault's faces that summary.json reports and the fault maps draw."""
+    fracture = np.asarray(fracture, np.int64)
+    state = np.asarray(state)
+    names = tuple(names)
+    if state.size != fracture.size:
+        raise ValueError(f"{state.size} face states for {fracture.size} fracture faces")
+    sf, of = area_fractions(fracture, area, state, len(names))
+    k = len(names)
+    count = {c: np.bincount(fracture, weights=(state == code), minlength=k).astype(int)
+             for c, code in STATE_CODES.items()}
+    ever = np.bincount(fracture, weights=np.isfinite(np.asarray(onset, float)), minlength=k).astype(int)
+    faces = np.bincount(fracture, minlength=k)
+    return {n: {"time": None if time is None else float(time), "faces": int(faces[i]),
+                **{c: int(count[c][i]) for c in STATE_CODES}, "slip_area_fraction": float(sf[i]),
+                "open_area_fraction": float(of[i]), "ever_slipped": int(ever[i])} for i, n in enumerate(names)}
+
+
 def first_time(times, values, threshold: float = 0.0):
     """The first time at which ``values`` exceeds ``threshold`` (> 0 for the default 0, ≥ otherwise),
     or None."""
@@ -87,6 +107,7 @@ class StepRecorder:
         self.max_overpressure: list[float] = []
         self.peak_cell: list[int] = []
         self.onset = np.full(self.fracture.size, np.nan)    # per face: first time in the slip state
+        self.state = np.zeros(0, np.int8)                   # the face states of the last recorded time
         self._pf0 = None
 
     def add(self, t: float, state, overpressure, p_f=None) -> None:
@@ -108,6 +129,8 @@ class StepRecorder:
                 self.max_fracture_overpressure[n].append(float(dpf[sel].max()))
         new = (state == SLIP) & np.isnan(self.onset)
         self.onset[new] = t
+        # kept for the fault maps and final_states: the very states of the series' last value
+        self.state = state.copy()
         op = np.asarray(overpressure, float)
         for k, cells in self.wells.items():
             v = self.volume[cells]
@@ -123,9 +146,17 @@ class StepRecorder:
         return {n: {"first_slip": first_time(self.times, self.slip_fraction[n]),
                     "area_1pct": first_time(self.times, self.slip_fraction[n], AREA_ONSET)} for n in self.names}
 
+    def final_states(self) -> dict:
+        """Fault -> the face counts at the last recorded time: time (s), faces, open, stick, slip,
+        slip_area_fraction and open_area_fraction (the series' last values) and ever_slipped
+        (faces with an onset time): what the fault maps draw."""
+        return final_states(self.names, self.fracture, self.area, self.state, self.onset,
+                            self.times[-1] if self.times else None)
+
     def summary(self, cell_centroid=None) -> dict:
         """The series for summary.json's ``monitor`` (time = the recorded times)."""
         out = {"slip_area_fraction": self.slip_fraction, "open_area_fraction": self.open_fraction,
+               "final_fault_states": self.final_states(),
                "max_fracture_overpressure": self.max_fracture_overpressure, "fault_onset": self.onsets(),
                "max_overpressure": self.max_overpressure,
                "wells": {k: {"cells": int(c.size), "mean_overpressure": self.well_mean[k],
@@ -462,6 +493,19 @@ class PlotData:
     def first_slip(self) -> dict:
         return {n: first_time(self.fault_times, self.slip_fraction[n]) for n in self.names}
 
+    def final_states(self) -> dict:
+        """:func:`final_states` of the faces at t_final (what the fault maps draw)."""
+        return final_states(self.names, self.fracture, self.area, self.state, self.onset, self.t_final)
+
+    def series_at_final(self) -> dict:
+        """Fault -> (slip, open) area fractions of the series (summary.json's) at t_final; None
+        for a fault when the series has no value at t_final."""
+        t = np.asarray(self.fault_times, float)
+        k = int(np.argmin(np.abs(t - self.t_final))) if t.size else -1
+        ok = t.size and abs(t[k] - self.t_final) <= 1e-9 * max(abs(self.t_final), 1.0)
+        return {n: (float(self.slip_fraction[n][k]), float(self.open_fraction[n][k])) if ok else None
+                for n in self.names}
+
     def area_onset(self) -> dict:
         return {n: first_time(self.fault_times, self.slip_fraction[n], AREA_ONSET) for n in self.names}
 
@@ -469,8 +513,11 @@ class PlotData:
 def collect(case_name, t_end, fm, face_area, recorder: StepRecorder, monitor: dict, last: dict, points: dict,
             overpressure) -> PlotData:
     """PlotData of a run in memory: ``fm`` the FracturedMesh, ``face_area`` (n_ff,), the run's
-    StepRecorder, its ``monitor`` dict (time, points, fault_slip), the ``last`` output snapshot
-    (time, slip, state), monitor points {name: cell} and the final overpressure (n_cells,)."""
+    StepRecorder, its ``monitor`` dict (time, points, fault_slip), the ``last`` state's time and
+    slip since the start, monitor points {name: cell} and the final overpressure (n_cells,).
+
+    The face states and onsets are the recorder's, the arrays behind summary.json's series and
+    ``final_fault_states``, at the recorder's last time (which must be ``last["time"]``)."""
     from .vtu import fracture_cells
 
     mesh, net = fm.mesh, fm.network
@@ -478,6 +525,8 @@ def collect(case_name, t_end, fm, face_area, recorder: StepRecorder, monitor: di
     fc = fracture_cells(fm)
     lo, hi = cell_boxes(mesh.nodes, mesh.cell_nodes.values, mesh.cell_nodes.offsets)
     t = np.asarray(recorder.times)
+    if not t.size or abs(t[-1] - float(last["time"])) > 1e-9 * max(abs(t[-1]), 1.0):
+        raise ValueError(f"the last recorded time {t[-1] if t.size else None} is not the final time {last['time']}")
     return PlotData(
         case=case_name, t_end=float(t_end), names=tuple(net.names), fault_times=t,
         slip_fraction={k: np.asarray(v) for k, v in recorder.slip_fraction.items()},
@@ -486,8 +535,8 @@ def collect(case_name, t_end, fm, face_area, recorder: StepRecorder, monitor: di
         fracture=np.asarray(net.fracture), area=np.asarray(face_area, float), normal=np.asarray(net.normal, float),
         centroid=np.asarray(g.face_centroid[net.faces], float),
         polygons=(fc["points"], fc["connectivity"], fc["offsets"]),
-        slip=np.asarray(last["slip"], float), state=np.asarray(last["state"]), onset=recorder.onset.copy(),
-        t_final=float(last["time"]), pressure_times=t,
+        slip=np.asarray(last["slip"], float), state=recorder.state.copy(), onset=recorder.onset.copy(),
+        t_final=float(t[-1]), pressure_times=t,
         well_mean={k: np.asarray(v) for k, v in recorder.well_mean.items()},
         well_max={k: np.asarray(v) for k, v in recorder.well_max.items()},
         points={k: np.asarray(v) for k, v in monitor["points"].items()},
@@ -578,6 +627,10 @@ def from_run_directory(folder, wells_of=None) -> PlotData:
     bulk = [(t, f) for t, f, part in entries if part == 0]
     frac_vtu = [f for t, f, part in entries if part == 1]
     fv = read_vtu(folder / frac_vtu[-1], ["Points", "connectivity", "offsets", "fracture", "normal"])
+    try:                                                    # runs of this version: every step's onset
+        onset = np.asarray(read_vtu(folder / frac_vtu[-1], ["first_slip"])["first_slip"], float)
+    except KeyError:
+        onset = None
     if fv["offsets"].size != fr["area"].size:
         raise ValueError(f"{folder}: {frac_vtu[-1]} has {fv['offsets'].size} faces, fractures.csv "
                          f"{fr['area'].size}")
@@ -605,7 +658,8 @@ def from_run_directory(folder, wells_of=None) -> PlotData:
         well_mean = {k: np.asarray(w["mean_overpressure"]) for k, w in mon["wells"].items()}
         well_max = {k: np.asarray(w["max_overpressure"]) for k, w in mon["wells"].items()}
         max_op = np.asarray(mon["max_overpressure"])
-        notes.append("face onset times at the output times of fractures.csv")
+        if onset is None:
+            notes.append("face onset times at the output times of fractures.csv")
     else:
         fault_times = fr["time"]
         fr_frac = [area_fractions(fracture, fr["area"], s, len(names)) for s in fr["state"]]
@@ -622,19 +676,31 @@ def from_run_directory(folder, wells_of=None) -> PlotData:
         max_op = np.array([o.max() for o in op_out])
         notes.append("series at the output times (the run predates per-step monitor series)")
     mt = np.asarray(mon["time"], float)
+    if mt.size and abs(fr["time"][-1] - mt[-1]) > 1e-9 * max(abs(mt[-1]), 1.0):
+        notes.append(f"fractures.csv ends at t = {fr['time'][-1]:g} s, the series at {mt[-1]:g} s")
     pts = {k: np.interp(pressure_times, mt, np.asarray(v, float)) for k, v in mon["overpressure_at_points"].items()}
-    return PlotData(
+    d = PlotData(
         case=summary["case"], t_end=float(max(fr["time"][-1], mt[-1] if mt.size else 0.0)), names=names,
         fault_times=np.asarray(fault_times, float), slip_fraction=sf, open_fraction=of, max_slip=max_slip,
         fracture=fracture, area=fr["area"], normal=normal, centroid=fr["xyz"],
         polygons=(np.asarray(fv["Points"], float), fv["connectivity"].astype(np.int64), fv["offsets"].astype(np.int64)),
-        slip=slip_out[-1], state=fr["state"][-1], onset=_face_onset(fr["time"], fr["state"]),
+        slip=slip_out[-1], state=fr["state"][-1],
+        onset=_face_onset(fr["time"], fr["state"]) if onset is None else onset,
         t_final=float(fr["time"][-1]), pressure_times=np.asarray(pressure_times, float),
         well_mean=well_mean, well_max=well_max, points=pts, max_fracture_overpressure=mfo,
         max_overpressure=np.asarray(max_op, float),
         well_cells_xyz={k: centroid[c] for k, c in wells.items()},
         point_xyz={k: np.asarray(v, float) for k, v in mon.get("points", {}).items()},
         lo=lo, hi=hi, cell_centroid=centroid, overpressure=np.asarray(bv["overpressure"], float), notes=notes)
+    reported = mon.get("final_fault_states")
+    if reported:
+        mine = d.final_states()
+        for n, r in reported.items():
+            m = mine.get(n)
+            if m is None or any(m[c] != r[c] for c in ("faces", "open", "stick", "slip")):
+                notes.append(f"fault {n}: the face states of fractures.csv at t = {d.t_final:g} s are not "
+                             "summary.json's final_fault_states")
+    return d
 
 
 def _face_onset(times, states) -> np.ndarray:

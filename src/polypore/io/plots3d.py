@@ -37,9 +37,14 @@ STATE_ORDER = ("open", "stick", "slip")
 NEVER = "0.82"                     # colour of faces that never slipped
 
 
-def write_3d_plots(folder, d: PlotData) -> list[Path]:
+def write_3d_plots(folder, d: PlotData, drawn: dict | None = None) -> list[Path]:
     """Write the figures of a 3D run into ``folder``; return the files written. A figure that
-    fails is logged as a warning and skipped (the others are still written)."""
+    fails is logged as a warning and skipped (the others are still written).
+
+    drawn : dict, optional
+        Filled with figure name -> what the figure drew, for the fault figures (see
+        :func:`fault_maps_plot`, :func:`slip_onset_plot`): to be compared with summary.json.
+    """
     folder = Path(folder)
     todo = [("pressure.png", pressure_plot), ("pressure_map.png", pressure_map_plot)]
     if d.fracture.size:
@@ -47,7 +52,9 @@ def write_3d_plots(folder, d: PlotData) -> list[Path]:
     done = []
     for name, fn in todo:
         try:
-            fn(folder / name, d)
+            what = fn(folder / name, d)
+            if drawn is not None and what is not None:
+                drawn[name] = what
             done.append(folder / name)
         except Exception as exc:       # a figure must never fail the run
             log.warning("plot %s not written: %s: %s", name, type(exc).__name__, exc)
@@ -64,8 +71,11 @@ def _when(t, d: PlotData) -> str:
 
 # --------------------------------------------------------------------------- (a) slip onset
 
-def slip_onset_plot(path, d: PlotData) -> None:
-    """Slipping and open area (% of each fault) and the largest slip against time."""
+def slip_onset_plot(path, d: PlotData) -> dict:
+    """Slipping and open area (% of each fault) and the largest slip against time.
+
+    Returns fault -> {"slip_area_fraction", "open_area_fraction": (n_t,) the curves drawn (as
+    fractions), "first_slip": s or None}: summary.json's series, drawn as they are."""
     plt = _plt()
     tf, tu = time_unit(d.t_end)
     t = d.fault_times / tf
@@ -73,6 +83,7 @@ def slip_onset_plot(path, d: PlotData) -> None:
     smax = max((float(np.max(v)) for v in d.max_slip.values() if len(v)), default=0.0)
     fs, us = value_unit("m", smax)
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.9), layout="constrained")
+    out = {}
     for i, n in enumerate(d.names):
         c = _fault_colour(i)
         if first[n] is None:
@@ -81,8 +92,10 @@ def slip_onset_plot(path, d: PlotData) -> None:
             lab = f"{n}: first slip at {_when(first[n], d)}"
             lab += (f"; {100 * AREA_ONSET:g}% of its area at {_when(by_area[n], d)}" if by_area[n] is not None
                     else f"; never {100 * AREA_ONSET:g}% of its area")
-        axes[0].plot(t, 100 * d.slip_fraction[n], "o-", ms=3, color=c, label=lab)
-        axes[1].plot(t, 100 * d.open_fraction[n], "o-", ms=3, color=c)
+        ls = axes[0].plot(t, 100 * d.slip_fraction[n], "o-", ms=3, color=c, label=lab)[0]
+        lo = axes[1].plot(t, 100 * d.open_fraction[n], "o-", ms=3, color=c)[0]
+        out[n] = {"slip_area_fraction": np.asarray(ls.get_ydata(), float) / 100,
+                  "open_area_fraction": np.asarray(lo.get_ydata(), float) / 100, "first_slip": first[n]}
         if n in d.max_slip and len(d.max_slip[n]) == len(t):
             axes[2].plot(t, d.max_slip[n] / fs, "o-", ms=3, color=c)
         if first[n] is not None:
@@ -103,6 +116,7 @@ def slip_onset_plot(path, d: PlotData) -> None:
     fig.suptitle(f"{d.case}: fault reactivation against time (dotted: first slipping face of each fault)",
                  fontsize=11)
     save(fig, path)
+    return out
 
 
 # --------------------------------------------------------------------------- (b) fault maps
@@ -127,8 +141,19 @@ def fault_panels(d: PlotData) -> list[dict]:
     return out
 
 
-def fault_maps_plot(path, d: PlotData) -> None:
-    """Each fault in its plane: contact state, slip since the start at the final time, onset time."""
+def fault_maps_plot(path, d: PlotData) -> dict:
+    """Each fault in its plane: contact state, slip since the start at the final time, onset time.
+
+    The faces are coloured by ``d.state`` and ``d.onset`` (in a run: the recorder's arrays behind
+    summary.json's series) and the titles quote the series at t_final; a map whose faces
+    disagree with the series is drawn but logged as a warning.
+
+    Returns fault -> what its row draws, read back from the drawn collections: ``faces``,
+    ``open`` / ``stick`` / ``slip`` (faces of each colour), ``slip_area_fraction`` (area of the
+    faces coloured slip / the fault's area), ``ever_slipped`` (faces with an onset colour),
+    ``title_slip_area_fraction`` (the percentage of the title, as a fraction), ``first_slip``
+    (the earliest onset drawn, s, or None) and ``time`` (s).
+    """
     plt = _plt()
     from matplotlib.collections import PolyCollection
     from matplotlib.colors import BoundaryNorm, ListedColormap
@@ -136,7 +161,9 @@ def fault_maps_plot(path, d: PlotData) -> None:
 
     panels = fault_panels(d)
     if not panels:
-        return
+        return {}
+    series = d.series_at_final()
+    out = {}
     tf, tu = time_unit(d.t_end)
     smax = float(np.max(d.slip)) if d.slip.size else 0.0
     fs, us = value_unit("m", smax)
@@ -169,10 +196,23 @@ def fault_maps_plot(path, d: PlotData) -> None:
         po.set_clim(*onset_range)
         a_on.add_collection(po)
         fig.colorbar(po, ax=a_on, label=f"first slip ({tu})", shrink=0.9)
-        frac = float(d.area[f][d.state[f] == 2].sum() / max(d.area[f].sum(), 1e-300))
+        # what the faces show, read back from the collections (the data the figure holds)
+        shown = np.asarray(ps.get_array(), float)
+        never = np.ma.getmaskarray(po.get_array())
+        area = d.area[f]
+        drawn_frac = float(area[shown == 2].sum() / max(area.sum(), 1e-300))
+        frac = drawn_frac if series[p["name"]] is None else series[p["name"]][0]
+        if abs(frac - drawn_frac) > 1e-9:
+            log.warning("fault_maps.png: the faces of %s coloured slip cover %.3g%% of its area, the series of "
+                        "summary.json %.3g%% at t = %g s", p["name"], 100 * drawn_frac, 100 * frac, d.t_final)
+        out[p["name"]] = {"time": d.t_final, "faces": int(f.size),
+                          **{s_: int(np.sum(shown == k)) for k, s_ in enumerate(STATE_ORDER)},
+                          "slip_area_fraction": drawn_frac, "ever_slipped": int(np.sum(~never)),
+                          "title_slip_area_fraction": frac}
         first = float(np.nanmin(d.onset[f])) if np.isfinite(d.onset[f]).any() else None
-        a_state.set_title(f"{p['name']} (dip {p['frame'].dip:.0f}°): state, {100 * frac:.1f}% of the area slips",
-                          fontsize=9)
+        out[p["name"]]["first_slip"] = first
+        a_state.set_title(f"{p['name']} (dip {p['frame'].dip:.0f}°): state, {percent(frac)}% of the area slips "
+                          f"({out[p['name']]['slip']} of {f.size} faces)", fontsize=9)
         a_slip.set_title(f"{p['name']}: slip since t = 0, largest {d.slip[f].max() / fs:.3g} {us}", fontsize=9)
         a_on.set_title(f"{p['name']}: time of first slip (first face: {_when(first, d)})", fontsize=9)
         for a in (a_state, a_slip, a_on):
@@ -184,6 +224,14 @@ def fault_maps_plot(path, d: PlotData) -> None:
     fig.suptitle(f"{d.case}: the faults seen face-on at t = {when} (contact state, slip, and when each face "
                  "first slipped)", fontsize=11)
     save(fig, path)
+    return out
+
+
+def percent(fraction: float) -> str:
+    """A fraction as a percentage for a title: one decimal, two significant digits below 0.1%
+    (a few thin slipping faces must not read as 0.0%)."""
+    v = 100 * float(fraction)
+    return "0" if v == 0 else f"{v:.2g}" if v < 0.1 else f"{v:.1f}"
 
 
 def onset_limits(onset, t_end) -> np.ndarray:

@@ -3,11 +3,16 @@ problem."""
 
 from __future__ import annotations
 
+import logging
 import resource
 import time
 
+from ..mesh.cornerpoint import fault_report, fault_table
+from ..setup.meshing import cornerpoint_of
 from ..solvers.distributed import context
 from ..solvers.timing import SPLIT, summary_split
+
+log = logging.getLogger("polypore")
 
 
 def peak_memory_mb() -> float:
@@ -18,6 +23,24 @@ def peak_memory_mb() -> float:
 def unknowns(problem) -> int:
     """Unknowns of a contact-mechanics problem: free displacement unknowns and the multipliers."""
     return int(problem.free.size + problem.n_c * problem.dim)
+
+
+def corner_point_faults(case, fm) -> dict | None:
+    """summary.json's ``faults`` of a run on a corner-point grid (None on other meshes): every
+    fault of the grid (:func:`polypore.mesh.cornerpoint.fault_report`) with the name of the
+    ``[[fractures]]`` entry using it as a contact surface (``fracture``, None: bonded); logs
+    them as a table."""
+    cp = cornerpoint_of(fm.mesh)
+    if cp is None:
+        return None
+    _, info = cp
+    used = {f.fault or f.name: f.name for f in getattr(case.spec, "fractures", None) or ()}
+    report = fault_report(fm.mesh, info)
+    log.info("faults of the grid (cells on the hanging wall / footwall; dip from horizontal; azimuths "
+             "clockwise from north = +y):")
+    for line in fault_table(report, used):
+        log.info("  %s", line)
+    return {name: {"fracture": used.get(name), **r} for name, r in report.items()}
 
 
 class RunClock:

@@ -38,7 +38,7 @@ from ..setup.casefile import CaseFile, load_case
 from ..setup.flow import well_cells
 from ..setup.meshing import build_fractured_mesh
 from ..setup.poromechanics import monitor_points, poro_setup
-from .common import RunClock
+from .common import RunClock, corner_point_faults
 from .march import march
 
 log = logging.getLogger("polypore")
@@ -49,6 +49,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
     fm = build_fractured_mesh(case)
     model, fs, ms = poro_setup(case, fm)
     mesh, net = fm.mesh, fm.network
+    faults = corner_point_faults(case, fm)
     g = mesh.geometry
     schedule = fs.schedule
     s_arc = arc_length(fm)
@@ -97,7 +98,9 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             write_fracture_vtu(stage / f"fractures_{k_out:04d}.vtu", fm, cell_data={
                 "jump": fq["jump"], "jump_n": fq["jump_n"], "jump_t": fq["jump_t"], "lambda": st.lam,
                 "lambda_n": fq["lambda_n"], "lambda_t": fq["lambda_t"], "state": fq["state"].astype(np.int32),
-                "aperture": fq["aperture"], "p_f": fq["p_f"]})
+                "aperture": fq["aperture"], "p_f": fq["p_f"],
+                # every step's onset (the recorder saw this time already): replots draw the same
+                "first_slip": recorder.onset.copy()})
             pvd.extend([(st.time, f"bulk_{k_out:04d}.vtu", 0), (st.time, f"fractures_{k_out:04d}.vtu", 1)])
             blocks.append(fracture_rows(n, st.time, net.names, net.fracture, g.face_centroid[net.faces], s_arc,
                                         model.mech.face_area, fq["jump"], model.mech.normal, st.lam,
@@ -132,8 +135,8 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                               else st.time, "faces": int(np.sum(st.state == SLIP)),
                               "first_slipping_faces": np.round(x, 3).tolist()[:20]})
 
+        record(state)                   # before the output: its VTU holds the onsets up to now
         output(0, 0, state)
-        record(state)
         k_out = [1]
 
         def step(st, ta, tb):
@@ -178,8 +181,8 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             _plot_safely("monitor", lambda: monitor_plots(stage, case.name, net, s_arc, monitor, snapshots,
                                                           onset.get("time"), tf, f"t ({tname})"))
         else:
-            fq = model.fracture_quantities(state)
-            last = {"time": state.time, "slip": slip_since_start(state), "state": fq["state"]}
+            # the face states and onsets are the recorder's (those of summary.json's series)
+            last = {"time": state.time, "slip": slip_since_start(state)}
             op = model.cell_pressure(state) - p0
             _plot_safely("3D monitor", lambda: write_3d_plots(stage, collect(
                 case.name, schedule.end, fm, model.mech.face_area, recorder, monitor, last, points, op)))
@@ -189,6 +192,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             "mesh": {"dim": mesh.dim, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
                      "fracture_faces": net.n_faces, "multiplier_patches": model.mech.patches.summary(),
                      "unknowns": int(model.mech.free.size + model.mech.n_c * model.dim + model.flow_free.size)},
+            **({"faults": faults} if faults is not None else {}),
             "steps": steps,
             "energy_check": {"violations": violations, "steps_checked": len(energies)},
             "fracture_means": series,

@@ -30,7 +30,7 @@ from ..models.fracture_geometry import arc_length
 from ..setup.casefile import CaseFile
 from ..setup.flow import FlowSetup, flow_setup
 from ..setup.meshing import build_fractured_mesh
-from .common import RunClock
+from .common import RunClock, corner_point_faults
 
 log = logging.getLogger("polypore")
 
@@ -205,6 +205,7 @@ def run_flow(case: CaseFile, out: Path) -> dict:
     clock = RunClock()
     fm, setup, model, stage_seconds = _prepare(case)
     mesh, net = fm.mesh, fm.network
+    faults = corner_point_faults(case, fm)
     s = arc_length(fm)
     steps, blocks, pvd = [], [], []
     with staged_run_directory(out) as stage:
@@ -248,6 +249,7 @@ def run_flow(case: CaseFile, out: Path) -> dict:
                      "fracture_faces": net.n_faces, "unknowns": flow_unknowns(model),
                      "global_unknowns": int(model.assembler.dofs.n),
                      "h_max": float(mesh.geometry.cell_diameter.max())},
+            **({"faults": faults} if faults is not None else {}),
             "steady": setup.steady,
             "steps": steps,
             "fluxes": bal,

@@ -27,7 +27,7 @@ from ..cases.reference import ReferenceSlip
 from ..setup.casefile import CaseFile
 from ..setup.mechanics import mechanics_setup
 from ..setup.meshing import build_fractured_mesh
-from .common import RunClock, unknowns
+from .common import RunClock, corner_point_faults, unknowns
 
 log = logging.getLogger("polypore")
 
@@ -61,6 +61,7 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
     clock = RunClock()
     problem, st, setup, errors, timings = solve_static(case)
     fm, mesh = problem.fm, problem.fm.mesh
+    faults = corner_point_faults(case, fm)
     net = fm.network
     g = mesh.geometry
     d = mesh.dim
@@ -93,6 +94,7 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
             "mesh": {"dim": d, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
                      "fracture_faces": net.n_faces, "unknowns": unknowns(problem),
                      "h_max": float(g.cell_diameter.max())},
+            **({"faults": faults} if faults is not None else {}),
             "steps": [{"time": 0.0, "newton_iterations": st.newton_iterations, "residual": st.residual,
                        "open": int(np.sum(st.state == 0)), "stick": int(np.sum(st.state == 1)),
                        "slip": int(np.sum(st.state == 2)), "seconds": timings["solve"], "history": st.history}],

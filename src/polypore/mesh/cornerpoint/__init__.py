@@ -11,7 +11,7 @@ Typical use::
 See docs/cornerpoint.md.
 """
 
-from .faults import detect_faults, fault_faces, fault_normals, fractured_mesh
+from .faults import detect_faults, fault_faces, fault_normals, fault_report, fault_table, fractured_mesh
 from .generate import FaultSpec, generate_grid, write_grdecl
 from .info import BOUNDARY_NAMES, CornerPointInfo
 from .permeability import MILLIDARCY, cell_permeability
@@ -23,5 +23,5 @@ __all__ = [
     "CornerPointGrid", "CornerPointInfo", "FaultSpec", "BOUNDARY_NAMES",
     "read_grdecl", "write_grdecl", "generate_grid", "process_grid", "pillar_points", "cell_permeability",
     "MILLIDARCY", "split_nonplanar_faces",
-    "detect_faults", "fault_faces", "fault_normals", "fractured_mesh",
+    "detect_faults", "fault_faces", "fault_normals", "fault_report", "fault_table", "fractured_mesh",
 ]

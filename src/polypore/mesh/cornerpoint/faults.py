@@ -8,7 +8,10 @@ other fault faces are grouped into connected fault surfaces, in map view: two pi
 carrying fault faces are connected through a pillar they share when that pillar carries
 exactly two of them (the fault goes on, possibly turning) or when they are collinear (at a T
 or X junction the straight branches go on, the others end). Groups are named ``fault_1``,
-``fault_2``, ... by their first face.
+``fault_2``, ... in the order of their smallest pillar pair, keyed by the (i, j) of its first
+pillar (then i pair before j pair): integers of the grid, so that the names do not change
+with the snapping or the ``nonplanar`` face option (which renumber the faces and may drop
+sliver faces of a fault, never its pillar pairs). A pillar pair belongs to one group only.
 
 Orientation (:func:`fractured_mesh`): n⁺ is made coherent along each connected surface
 (the + side stays on the same side of the fault trace through turns), then signed so that
@@ -41,6 +44,16 @@ def _pair_geometry(pairs: np.ndarray, nx: int, ny: int):
     j = np.where(is_i, pairs % ny, qj % (ny + 1))
     end = np.stack([np.stack([i, j], 1), np.stack([i + (~is_i), j + is_i], 1)], 1)    # (k, 2 ends, 2)
     return end, (~is_i).astype(np.int8)
+
+
+def pair_keys(pairs: np.ndarray, nx: int, ny: int) -> np.ndarray:
+    """(k,) int64 sort keys of pillar pairs: (i, j) of their first pillar, then i pair before j pair.
+
+    Integers of the grid only, so that the order of faults (their names) does not depend on
+    the face numbering or on floating-point geometry.
+    """
+    end, d = _pair_geometry(np.asarray(pairs, dtype=np.int64), nx, ny)
+    return (end[:, 0, 0] * (ny + 1) + end[:, 0, 1]) * 2 + d
 
 
 def _pair_graph(pairs: np.ndarray, nx: int, ny: int):
@@ -154,16 +167,19 @@ def detect_faults(mesh: Mesh, info, grid=None):
     if rest.size:
         pairs, inv = np.unique(info.face_pair[rest], return_inverse=True)
         a, b, _ = _pair_graph(pairs, nx, ny)
-        lab = _components(pairs.size, a, b)[inv]
-        first = np.full(lab.max() + 1, rest.size)
-        np.minimum.at(first, lab, np.arange(rest.size))
+        comp = _components(pairs.size, a, b)
+        lab = comp[inv]
+        # named in the order of their smallest pair key (integers of the grid: a face option or
+        # the snapping renumbers the faces and may drop sliver faces, never a fault's pairs)
+        first = np.full(comp.max() + 1, np.iinfo(np.int64).max)
+        np.minimum.at(first, comp, pair_keys(pairs, nx, ny))
         order = np.argsort(first)
         n = 0
-        for comp in order:
+        for c in order:                                     # one per fault (a handful)
             n += 1
             while f"fault_{n}" in faults:
                 n += 1
-            faults[f"fault_{n}"] = rest[lab == comp]
+            faults[f"fault_{n}"] = rest[lab == c]
     faults = {k: frozen(np.sort(v).astype(INDEX)) for k, v in faults.items()}
     from types import MappingProxyType
     return dataclasses.replace(info, faults=MappingProxyType(faults))
@@ -239,3 +255,66 @@ def fractured_mesh(mesh: Mesh, info, names=None) -> FracturedMesh:
     specs = tuple(FractureSpec(n, np.zeros((0, 3))) for n in fnames)
     network = _assemble_network(mesh, fnames, specs, faces, fracs, normals, measures)
     return FracturedMesh(mesh, network, node_sides(mesh, network.faces))
+
+
+def fault_report(mesh: Mesh, info, names=None) -> dict:
+    """Size and attitude of the faults (all when ``names`` is None), from their faces.
+
+    Returns name -> dict with
+
+    - ``faces``: number of mesh faces;
+    - ``cells``: ``{"hanging_wall": n, "footwall": m}`` cells touching the fault on each side:
+      the side its upward mean normal points into (above the fault), and the other side (for a
+      vertical fault the side of the mean normal signed as in :func:`fault_normals`);
+    - ``area_m2``: total face area (m²);
+    - ``dip_deg``: dip of the mean plane from horizontal (degrees, 0–90);
+    - ``dip_azimuth_deg``, ``strike_deg``: compass directions, degrees clockwise from north =
+      +y of the mesh (map coordinates, x east), in [0, 360): the direction the plane dips
+      towards, and strike = dip azimuth − 90° (right-hand rule: the plane dips to the right
+      of the strike direction);
+    - ``planarity``: |Σ A n| / Σ A of the coherently oriented faces (1 for a plane, smaller
+      for curved or turning faults, whose mean attitude is less meaningful).
+
+    The mean plane is that of the area-weighted mean of the coherent normals n⁺ (
+    :func:`fault_normals`), not of a fit, so that a fault's report does not depend on its
+    faces' numbering.
+    """
+    g = mesh.geometry
+    out = {}
+    for name in (list(info.faults) if names is None else names):
+        f = fault_faces(info, [name])[name].astype(np.int64)
+        n = fault_normals(mesh, info, f)
+        A = g.face_area[f]
+        m = (A[:, None] * n).sum(0)
+        up = 1.0 if m[2] >= 0 else -1.0                     # the hanging wall is above the plane
+        mlen = float(np.linalg.norm(m))
+        u = up * m / max(mlen, 1e-300)
+        # the second cell of a face is the one its normal points to
+        to_b = np.einsum("fi,fi->f", g.face_normal[f], up * n) > 0
+        fc = mesh.face_cells[f]
+        hang = np.where(to_b, fc[:, 1], fc[:, 0])
+        foot = np.where(to_b, fc[:, 0], fc[:, 1])
+        h = float(np.hypot(u[0], u[1]))
+        dip = float(np.degrees(np.arctan2(h, u[2])))
+        # an upward normal leans towards the dip direction
+        az = float(np.degrees(np.arctan2(u[0], u[1]))) % 360.0 if h > 1e-12 else 0.0
+        out[name] = {"faces": int(f.size),
+                     "cells": {"hanging_wall": int(np.unique(hang).size), "footwall": int(np.unique(foot).size)},
+                     "area_m2": float(A.sum()), "dip_deg": dip, "dip_azimuth_deg": az,
+                     "strike_deg": (az - 90.0) % 360.0, "planarity": mlen / max(float(A.sum()), 1e-300)}
+    return out
+
+
+def fault_table(report: dict, fractures: dict | None = None) -> list[str]:
+    """Lines of a compact table of :func:`fault_report` (``fractures``: fault -> the name of
+    the contact surface using it, shown in a column)."""
+    fractures = fractures or {}
+    head = (f"{'fault':<12} {'contact':<10} {'faces':>6} {'cells hw/fw':>11} {'area (m²)':>10} {'dip':>5} "
+            f"{'dip az':>6} {'strike':>6}")
+    rows = [head]
+    for name, r in report.items():
+        c = r["cells"]
+        rows.append(f"{name:<12} {fractures.get(name, '-'):<10} {r['faces']:>6} "
+                    f"{c['hanging_wall']:>5}/{c['footwall']:<5} {r['area_m2']:>10.4g} {r['dip_deg']:>4.0f}° "
+                    f"{r['dip_azimuth_deg']:>5.0f}° {r['strike_deg']:>5.0f}°")
+    return rows
