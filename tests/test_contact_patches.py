@@ -23,41 +23,47 @@ def _fault_mesh(throw, nx=4, ny=2, nz=4):
     return fractured_mesh(mesh, info, ["F"])
 
 
-def _mechanics(fm, ratio):
+def _mechanics(fm, ratio, bubbles="face"):
     zero = lambda X, t: np.zeros_like(X)  # noqa: E731
     bcs = [DisplacementBC("bottom", (0, 1, 2), zero)] + [DisplacementBC(b, (0, 1), zero)
                                                          for b in ("west", "east", "south", "north")]
     n = fm.mesh.n_cells
     data = MechanicsData(mu=np.full(n, 1e10), lam=np.full(n, 1e10), displacement=bcs,
-                         contact=ContactSpec("coulomb", 0.6, patch_ratio=ratio))
+                         contact=ContactSpec("coulomb", 0.6, patch_ratio=ratio), bubble_stabilisation=bubbles)
     return ContactMechanics(fm, data)
 
 
 @pytest.fixture(scope="module")
 def inf_sup_family():
-    """β (face-wise, patches) on faces thinning from 1/2 to 1/1000 of the layer height."""
+    """β on faces thinning from 1/2 to 1/1000 of the layer height: {throw: {(patch ratio, bubble
+    stabilisation): β}}."""
     out = {}
     for t in (12.5, 2.5, 0.25, 0.025):
         fm = _fault_mesh(t)
-        out[t] = (inf_sup_constant(_mechanics(fm, 0.0)), inf_sup_constant(_mechanics(fm, 0.2)),
-                  float(cross_section_ratio(fm).min()))
+        out[t] = {(r, b): inf_sup_constant(_mechanics(fm, r, b)) for r in (0.0, 0.2) for b in ("cell", "face")}
     return out
 
 
-def test_face_wise_inf_sup_degrades_like_the_root_of_the_face_ratio(inf_sup_family):
-    # the measurement itself must see the defect the patches cure: β ∝ √(|σ|/A_K)
-    b = {t: v[0] for t, v in inf_sup_family.items()}
+def _betas(family, key):
+    return np.array([v[key] for v in family.values()])
+
+
+def test_cell_scaled_bubbles_lose_the_inf_sup_like_the_root_of_the_face_ratio(inf_sup_family):
+    # the measurement itself must see the defect: with the scheme's h_K^{d-2} bubble weight and
+    # one multiplier per face, β ∝ √(|σ|/A_K)
+    b = dict(zip(inf_sup_family, _betas(inf_sup_family, (0.0, "cell"))))
     assert b[0.025] < 0.15 * b[2.5]
     rate = np.log(b[0.25] / b[0.025]) / np.log(10.0)
     assert 0.35 < rate < 0.65
 
 
-def test_patch_inf_sup_does_not_degrade(inf_sup_family):
-    bp = np.array([v[1] for v in inf_sup_family.values()])
-    bf = np.array([v[0] for v in inf_sup_family.values()])
-    assert np.all(bp >= bf - 1e-12)                        # a subspace of the face-wise multipliers
-    assert bp.min() > 0.8 * bp.max() and bp.min() > 0.1
-    assert inf_sup_family[12.5][0] == pytest.approx(inf_sup_family[12.5][1])   # no sliver: no patch
+@pytest.mark.parametrize("key", [(0.2, "cell"), (0.0, "face"), (0.2, "face")])
+def test_inf_sup_does_not_degrade_with_patches_or_face_scaled_bubbles(inf_sup_family, key):
+    b = _betas(inf_sup_family, key)
+    assert b.min() > 0.8 * b.max() and b.min() > 0.1
+    if key[0] > 0:                       # patch multipliers: a subspace of the face-wise ones
+        assert np.all(b >= _betas(inf_sup_family, (0.0, key[1])) - 1e-12)
+    assert inf_sup_family[12.5][key] == pytest.approx(inf_sup_family[12.5][(0.0, key[1])])   # no sliver: no patch
 
 
 def test_patches_are_connected_sized_and_identity_on_regular_faces():

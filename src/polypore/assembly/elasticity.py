@@ -31,7 +31,8 @@ def interleave(blocks, d: int) -> sp.csr_array:
     return A.tocsr()
 
 
-def elasticity_matrix(ops, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 1.0) -> sp.csr_array:
+def elasticity_matrix(ops, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 1.0,
+                      bubble_scaling: str = "face") -> sp.csr_array:
     """Stiffness matrix (n_dofs, n_dofs) in N/m (J/m² in 2D).
 
     Σ_q w_q [μ (∇u:∇v + ∇u:∇vᵀ) + λ div u div v] over the rows q of ``ops.D`` (quadrature points
@@ -44,6 +45,19 @@ def elasticity_matrix(ops, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 
     mu, lam : (n_cells,) Lamé parameters μ and λ_L in Pa.
     stab_scale : factor on the stabilisation (1 in the scheme; 0 gives the unstabilised
         form, whose kernel contains the rigid motions).
+    bubble_scaling : weight of a bubble's stabilisation row |v_Kσ|²: "cell", the scheme's
+        h_K^{d−2} (2μ + λ_L)_K, or "face" (default), (2μ + λ_L)_K |σ|²/|K|.
+
+    Notes
+    -----
+    **Choice** ("face"): |σ|²/|K| is the weight the consistency term itself gives the bubble
+    (its gradient is |σ| v_Kσ ⊗ n_Kσ / |K| over |K|), the diagonal recipe of the VEM literature.
+    On shape-regular cells it equals h_K^{d−2} up to a bounded factor (3/2 on a regular
+    tetrahedron, 1 on a cube); on the flat cells of reservoir grids and on the slivers and thin
+    strips of corner-point faults h_K^{d−2} makes the bubble stiffer than the cell by up to
+    |K| h_K^{d−2}/|σ|² (10³–10¹² there), so that the face's multiplier cannot be controlled:
+    the discrete inf-sup constant falls like √(|σ|/A_K) with "cell" and stays at its
+    regular-face value with "face" (tests/test_contact_patches.py, docs/contact_patches.md).
     """
     mesh = ops.space.fm.mesh
     d = mesh.dim
@@ -54,8 +68,18 @@ def elasticity_matrix(ops, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 
     lap = sum(Dq.T @ Wmu @ Dq for Dq in D)
     S = None
     if ops.stab is not None:
-        h = mesh.geometry.cell_diameter
-        H = sp.diags_array(stab_scale * (h ** (d - 2) * (2 * mu + lam))[ops.stab_cell])
+        g = mesh.geometry
+        wts = stab_scale * (g.cell_diameter ** (d - 2) * (2 * mu + lam))[ops.stab_cell]
+        nb = ops.space.n_bubbles
+        if bubble_scaling == "face" and nb:
+            # bubble rows come last (discretisation/operators.py, _stabilisation)
+            sp_ = ops.space
+            K = sp_.bubble_cell
+            area = g.face_area[sp_.fm.network.faces[sp_.bubble_face]]
+            wts[-nb:] = stab_scale * (2 * mu + lam)[K] * area ** 2 / g.cell_volume[K]
+        elif bubble_scaling not in ("face", "cell"):
+            raise ValueError(f"bubble_scaling must be 'face' or 'cell', got {bubble_scaling!r}")
+        H = sp.diags_array(wts)
         S = ops.stab.T @ H @ ops.stab
     blocks = [[None] * d for _ in range(d)]
     for i in range(d):

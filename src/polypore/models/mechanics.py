@@ -87,6 +87,8 @@ class MechanicsData:
     two_sided : bubbles on both sides of fracture faces (default: one-sided; order 2: the 3D face
         bubbles, 2D has none)
     stabilisation : scale of the stabilisation S (1 in the scheme; unused by order 2)
+    bubble_stabilisation : "face" ((2μ + λ_L) |σ|²/|K| per bubble, default) or "cell" (the
+        scheme's h_K^{d−2} (2μ + λ_L)), :func:`~polypore.assembly.elasticity.elasticity_matrix`
     order : 1 (nodal + bubble space, scheme.md §3) or 2 (quadratic displacements on simplicial
         meshes, :mod:`polypore.discretisation.quadratic`; P0 multipliers on the face-mean jumps)
     """
@@ -104,6 +106,7 @@ class MechanicsData:
     two_sided: bool = False
     stabilisation: float = 1.0
     order: int = 1
+    bubble_stabilisation: str = "face"
 
     def __post_init__(self):
         # checked where the API builds the data: deep in the assembly a bad μ would only surface
@@ -114,6 +117,9 @@ class MechanicsData:
                  "Lamé's λ must be finite and exceed −2μ/3 (Pa; Poisson's ratio > −1)")
         b = np.asarray(self.biot, float)
         _require("biot", b, (b >= 0) & (b <= 1), "the Biot coefficient must lie in [0, 1]")
+        if self.bubble_stabilisation not in ("face", "cell"):
+            raise InputError("mechanics.bubble_stabilisation", f"must be 'face' or 'cell', got "
+                             f"{self.bubble_stabilisation!r}")
         if isinstance(self.order, bool) or self.order not in (1, 2):
             raise InputError("mechanics.order", f"the displacement order must be 1 (nodal + bubble space) or 2 "
                              f"(quadratic, simplicial meshes), got {self.order!r}")
@@ -224,7 +230,7 @@ class ContactMechanics:
             self.ops = Operators.build(self.space)
         mu, lam = np.broadcast_to(data.mu, (mesh.n_cells,)), np.broadcast_to(data.lam, (mesh.n_cells,))
         self.mu, self.lam = mu, lam
-        self.A = elasticity_matrix(self.ops, mu, lam, data.stabilisation)
+        self.A = elasticity_matrix(self.ops, mu, lam, data.stabilisation, data.bubble_stabilisation)
         if self.ops.stab is not None:
             # the stabilisation rows serve A only (the largest operator: one row per cell node),
             # so they are not kept for the rest of the run

@@ -153,6 +153,9 @@ class Mechanics(Table):
     bubbles: choice("one-sided", "two-sided") = Field("one-sided", description="face bubbles on one or both "
                                                        "sides of each fracture")
     stabilisation: Positive = Field(1.0, description="scaling of the stabilisation")
+    bubble_stabilisation: choice("face", "cell") = Field(
+        "face", description="weight of the bubbles' stabilisation: face ((2μ + λ) |σ|²/|K|, robust on flat cells "
+        "and fault slivers) or cell (h_K (2μ + λ), the scheme's; docs/contact_patches.md)")
     body_force: ExprVectorOrExact | None = Field(None, description="body force (N/m³), per component, or "
                                                  "\"exact\"")
     matrix_pressure: Expr | None = Field(None, description="p_m (Pa) of the Biot term −b p_m I")
