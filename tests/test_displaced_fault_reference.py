@@ -395,3 +395,27 @@ def test_shipped_case_grid_and_a_coarse_run(tmp_path):
     assert np.abs(dln[mid] - r["sigma_n_eff"][mid]).max() < 0.05 * np.abs(r["sigma_n_eff"][mid]).max()
     assert np.abs(dlt[mid] - r["tau"][mid]).max() < 0.1 * np.abs(r["tau"][mid]).max()
     assert np.abs(dln[far]).max() < 0.02 * C and np.abs(dlt[far]).max() < 0.02 * C
+
+
+def test_fault_face_means_are_the_integrals_of_the_point_values():
+    from scipy.integrate import quad
+
+    g = DisplacedFault(H_RES, 50.0, 60.0)
+    ya, yb, yc, yd = g.corners_y
+    # segments ending at corners (integrable log singularity), away from them, long and short
+    segs = np.array([[ya - 30.0, ya], [ya, ya + 12.5], [yc - 3.0, yc], [yc, yb], [yb, yb + 0.4], [yd, yd + 700.0],
+                     [-20.0, 10.0], [yd - 25.0, yd]])
+    got = g.fault_face_means(segs[:, 0], segs[:, 1], DP, ALPHA, NU)
+    for i, (y1, y2) in enumerate(segs):
+        for key in ("sigma_n", "tau"):
+            f = lambda y: g.fault_closed_form(np.array([y]), DP, ALPHA, NU)[0 if key == "sigma_n" else 1][0]  # noqa: E731
+            val = quad(f, y1, y2, points=[c for c in g.corners_y if y1 < c < y2], limit=200)[0] / (y2 - y1)
+            assert abs(got[key][i] - val) < 1e-7 * abs(DP), (i, key)
+    # short segments away from the corners: the point value
+    y = np.array([-300.0, -100.0, 0.0, 100.0, 300.0])
+    mean = g.fault_face_means(y - 1e-4, y + 1e-4, DP, ALPHA, NU)
+    r = g.fault_stress_changes(y, DP, ALPHA, NU)
+    for key in ("sigma_n", "tau", "sigma_n_eff"):
+        assert np.allclose(mean[key], r[key], rtol=1e-6, atol=1e-9 * abs(DP))
+    with pytest.raises(ValueError):
+        DisplacedFault(H_RES, 50.0, 60.0, width=1e3).fault_face_means([0.0], [1.0], DP)

@@ -294,6 +294,40 @@ class DisplacedFault:
         C = scaling_factor(dp, alpha, nu)
         return C * (np.pi * sn * sn * k - sn * cs * L), -C * (np.pi * sn * cs * k + sn * sn * L)
 
+    def fault_face_means(self, y1, y2, dp: float, alpha: float = 1.0, nu: float = 0.25) -> dict:
+        """Means of Δσ_n, Δτ and Δσ'_n over fault segments [y1, y2] (elevations, y1 < y2, m), exact,
+        for the laterally infinite reservoir (``width`` None): the mean of ln|y − y_k| over a segment
+        is [F(y2 − y_k) − F(y1 − y_k)] / (y2 − y1), F(u) = u ln|u| − u, finite even at a corner.
+
+        A segment should not straddle a corner (k(y) is taken at its midpoint, as is Δp_f). These
+        are the values a P0 (face-wise constant) approximation converges to face by face; point
+        values at a face's centroid are not, next to the logarithmic corners. Returns a dict of
+        (n,) arrays ``sigma_n``, ``tau``, ``dp_fault``, ``sigma_n_eff`` (Pa, conventions of the module).
+        """
+        if self.width is not None:
+            raise ValueError("the face means are for laterally infinite blocks (width=None)")
+        y1 = np.atleast_1d(np.asarray(y1, float))
+        y2 = np.atleast_1d(np.asarray(y2, float))
+        ya, yb, yc, yd = self.corners_y
+
+        def F(u):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.where(u == 0.0, 0.0, u * np.log(np.abs(u)) - u)
+
+        def mean_ln(yk):
+            return (F(y2 - yk) - F(y1 - yk)) / (y2 - y1)
+
+        L = mean_ln(ya) + mean_ln(yd) - mean_ln(yb) - mean_ln(yc)
+        ym = 0.5 * (y1 + y2)
+        k = ((ym > ya) & (ym < yb)).astype(float) + ((ym > yc) & (ym < yd))
+        th = np.radians(self.dip)
+        sn, cs = np.sin(th), np.cos(th)
+        C = scaling_factor(dp, alpha, nu)
+        sig_n = C * (np.pi * sn * sn * k - sn * cs * L)
+        dpf = self.fault_pressure(ym, dp)
+        return {"sigma_n": sig_n, "tau": -C * (np.pi * sn * cs * k + sn * sn * L), "dp_fault": dpf,
+                "sigma_n_eff": sig_n - dpf}
+
     def corner_log_coefficients(self, dp: float, alpha: float = 1.0, nu: float = 0.25) -> np.ndarray:
         """(4, 2) coefficients (Pa) of ln r in (Δσ_n, Δτ) on the fault near the corners y_a … y_d:
         Δσ_n ≈ A_n ln r + O(1), Δτ ≈ A_τ ln r + O(1) at a distance r from the corner along the fault.
