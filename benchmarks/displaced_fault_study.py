@@ -54,7 +54,12 @@ H, THROW, DIP, DEPTH = 200.0, 50.0, 60.0, 3000.0
 NU, ALPHA = 0.25, 1.0
 S0, RATIO, CORE = 25.0, 1.2, 500.0
 SIGMA0 = np.diag([-2.1e7, -2.5e7, -3.0e7])   # the case's initial_stress (x, y, z), Pa
-VARIANTS = {"default": [], "facewise": ["contact.patch_ratio=0"], "twosided": ["mechanics.bubbles=two-sided"]}
+BAND = 12     # aligned meshes: 12 layers of S0 (300 m at level 0) above and below the reservoir
+# name: (overrides, band); graded meshes have sliver faces near the outer corners (horizons of the two
+# sides start growing at different elevations), aligned ones have none near the reservoir
+VARIANTS = {"default": ([], 0), "facewise": (["contact.patch_ratio=0"], 0),
+            "twosided": (["mechanics.bubbles=two-sided"], 0),
+            "default-aligned": ([], BAND), "twosided-aligned": (["mechanics.bubbles=two-sided"], BAND)}
 FAULT = DisplacedFault(H, THROW, DIP)
 
 
@@ -77,43 +82,27 @@ def split(sizes, k: int) -> list[float]:
     return [v / 2 ** k for v in sizes for _ in range(2 ** k)]
 
 
-def level_grid(k: int, half: float = 2000.0):
+def layer_sizes(length: float, band: int) -> list[float]:
+    """``band`` layers of S0 next to the reservoir, then geometric growth from S0 to fill ``length``."""
+    return [S0] * band + base_sizes(length - band * S0)
+
+
+def level_grid(k: int, half: float = 2000.0, band: int = 0):
     ya, yb, yc, yd = FAULT.corners_y
     cols = split(base_sizes(half), k)
-    above = split(base_sizes(half - max(yb, yd)), k)     # the shorter side; the other's outermost grows
-    below = split(base_sizes(half + min(ya, yc)), k)
+    # the shorter side (the footwall above, the hanging wall below); the other's outermost layer grows
+    above = split(layer_sizes(half - max(yb, yd), band), k)
+    below = split(layer_sizes(half + min(ya, yc), band), k)
     nres = 8 * 2 ** k
     return displaced_fault_grid(FAULT, half_width=half, half_height=half, nz_reservoir=nres, columns=cols,
                                 layers_above=above, layers_below=below, core=CORE, depth=DEPTH,
                                 strike_length=H / nres)
 
 
-def face_means(y1, y2, dp):
-    """Face means of Δσ'_n and Δτ over elevations [y1, y2] (no face straddles a corner)."""
-    ya, yb, yc, yd = FAULT.corners_y
-    th = np.radians(DIP)
-    sn, cs = np.sin(th), np.cos(th)
-
-    def F(u):
-        with np.errstate(divide="ignore", invalid="ignore"):
-            return np.where(u == 0.0, 0.0, u * np.log(np.abs(u)) - u)
-
-    def mean_ln(yk):
-        return (F(y2 - yk) - F(y1 - yk)) / (y2 - y1)
-
-    L = mean_ln(ya) + mean_ln(yd) - mean_ln(yb) - mean_ln(yc)
-    ym = 0.5 * (y1 + y2)
-    k = ((ym > ya) & (ym < yb)).astype(float) + ((ym > yc) & (ym < yd))
-    C = scaling_factor(dp, ALPHA, NU)
-    sig_n = C * (np.pi * sn * sn * k - sn * cs * L)
-    tau = -C * (np.pi * sn * cs * k + sn * sn * L)
-    dpf = np.where((ym > min(ya, yc)) & (ym < max(yb, yd)), dp, 0.0)
-    return sig_n - dpf, tau
-
-
-def run_level(k: int, overrides, dp: float = -1e7, half: float = 2000.0, tmp: Path = Path(".")) -> dict:
-    grid = level_grid(k, half)
-    path = write_grdecl(grid, tmp / f"df_l{k}_h{int(half)}.grdecl")
+def run_level(k: int, overrides, dp: float = -1e7, half: float = 2000.0, band: int = 0,
+              tmp: Path = Path(".")) -> dict:
+    grid = level_grid(k, half, band)
+    path = write_grdecl(grid, tmp / f"df_l{k}_h{int(half)}_b{band}.grdecl")
     case = load_case("displaced-fault", [f"mesh.file={path}", f"parameters.dp={dp!r}", *overrides])
     t0 = time.perf_counter()
     problem, st, setup, _, _ = solve_static(case)
@@ -136,11 +125,18 @@ def run_level(k: int, overrides, dp: float = -1e7, half: float = 2000.0, tmp: Pa
     dln = ln - (-(n_ref @ SIGMA0 @ n_ref))
     dtau = -sgn * (lam @ e) - (e @ SIGMA0 @ n_ref)
     o = np.argsort(ym)
-    rn, rt = face_means(y1[o], y2[o], dp)
-    return {"level": k, "h": S0 / 2 ** k, "half": half, "dp": dp, "seconds": secs,
+    fmean = FAULT.fault_face_means(y1[o], y2[o], dp, ALPHA, NU)
+    rn, rt = fmean["sigma_n_eff"], fmean["tau"]
+    # the reference averaged over each multiplier's support (its patch; the face itself without patches)
+    fp = problem.patches.face_patch[o]
+    A = area[o]
+    wsum = np.bincount(fp, A)
+    pn, pt = np.bincount(fp, A * rn) / wsum, np.bincount(fp, A * rt) / wsum
+    return {"face_patch": fp, "sn_ref_face": rn, "tau_ref_face": rt, "band": band,
+            "level": k, "h": S0 / 2 ** k, "half": half, "dp": dp, "seconds": secs,
             "cells": fm.mesh.n_cells, "faces": int(net.n_faces), "patches": int(problem.patches.n),
             "newton": st.newton_iterations, "states": np.bincount(st.state, minlength=3).tolist(),
-            "y1": y1[o], "y2": y2[o], "area": area[o], "sn": dln[o], "tau": dtau[o], "sn_ref": rn, "tau_ref": rt}
+            "y1": y1[o], "y2": y2[o], "area": area[o], "sn": dln[o], "tau": dtau[o], "sn_ref": pn[fp], "tau_ref": pt[fp]}
 
 
 def metrics(r: dict) -> dict:
@@ -164,13 +160,32 @@ def metrics(r: dict) -> dict:
             "peak_ref_kept": float(np.abs(ref[keep]).max() / C),
             "l2": float(np.sqrt(np.sum(A * (v - ref) ** 2) / np.sum(A * ref ** 2))),
             "l2_outside": float(np.sqrt(np.sum((A * (v - ref) ** 2)[keep]) / np.sum((A * ref ** 2)[keep]))),
+            "l2_vs_face_means": float(np.sqrt(np.sum(A * (v - r[q + "_ref_face"]) ** 2) / np.sum(A * ref ** 2))),
+            "linf_vs_face_means": float(np.abs(v - r[q + "_ref_face"])[keep].max() / np.abs(ref[keep]).max()),
             "peaks": []}
+        for dist in (25.0, 50.0):
+            far = np.ones(y1.size, bool)
+            for yk in corners:
+                far &= (y2 <= yk - dist + 1e-9) | (y1 >= yk + dist - 1e-9)
+            out[q][f"linf_{int(dist)}m"] = float(err[far].max() / np.abs(ref[far]).max())
+            out[q][f"linf_{int(dist)}m_over_C"] = float(err[far].max() / C)
+        # error on the j-th face from each corner (j = 0, 1, 2, 3 on each side), / |C|: a log
+        # singularity makes it a function of j only under uniform refinement
+        rows = {}
         for yk in corners:
+            for side, dist in (("below", yk - y2), ("above", y1 - yk)):
+                idx = np.flatnonzero(dist >= -1e-9)
+                idx = idx[np.argsort(dist[idx])][:4]
+                rows[f"{yk:g} {side}"] = [[float(dist[i] / h), float((v[i] - ref[i]) / C)] for i in idx]
+        out[q]["near_corner"] = rows
+        rf = r[q + "_ref_face"]
+        for yk in corners:
+            # the face touching the corner with the larger |reference face mean|
             touch = np.flatnonzero((np.abs(y1 - yk) < 1e-6) | (np.abs(y2 - yk) < 1e-6))
-            j = touch[np.argmax(np.abs(ref[touch]))]
+            j = touch[np.argmax(np.abs(rf[touch]))]
             out[q]["peaks"].append({"corner": float(yk), "face": [float(y1[j]), float(y2[j])],
-                                    "num_over_C": float(v[j] / C), "ref_over_C": float(ref[j] / C),
-                                    "ratio": float(v[j] / ref[j])})
+                                    "num_over_C": float(v[j] / C), "ref_face_over_C": float(rf[j] / C),
+                                    "ref_support_over_C": float(ref[j] / C), "ratio": float(v[j] / rf[j])})
     return out
 
 
@@ -216,17 +231,22 @@ def convergence_plot(path, table):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5))
-    for ax, q, lab in ((axes[0], "sn", "Δσ'_n"), (axes[1], "tau", "Δτ")):
-        for (name, rows), col in zip(table.items(), ["C0", "C1", "C2"]):
+    fig, axes = plt.subplots(2, 2, figsize=(12, 9), sharex=True)
+    cols = ["C0", "C1", "C2", "C3", "C4", "C5"]
+    for j, (q, lab) in enumerate((("sn", "Δλ_n vs Δσ'_n"), ("tau", "Δτ"))):
+        for (name, rows), col in zip(table.items(), cols):
             hs = [m["h"] for m in rows]
-            ax.loglog(hs, [m[q]["linf"] for m in rows], "o-", color=col, label=f"{name}: L∞ outside corners")
-            ax.loglog(hs, [m[q]["l2"] for m in rows], "s--", color=col, label=f"{name}: L2 whole fault")
-        ax.axhline(0.02, color="k", lw=0.6, ls=":")
-        ax.set_xlabel("reservoir layer h (m)")
-        ax.set_title(lab + " (relative)")
-        ax.grid(alpha=0.3, which="both")
-    axes[0].legend(fontsize=7)
+            axes[0, j].loglog(hs, [m[q]["linf"] for m in rows], "o-", color=col, label=f"{name}: outside 2 cells")
+            axes[0, j].loglog(hs, [m[q]["linf_25m"] for m in rows], "^:", color=col, label=f"{name}: outside 25 m")
+            axes[1, j].loglog(hs, [m[q]["l2"] for m in rows], "s--", color=col, label=name)
+        axes[0, j].axhline(0.02, color="k", lw=0.6, ls=":")
+        axes[0, j].set_title(f"{lab}: L∞ / largest |ref| over the same faces")
+        axes[1, j].set_title(f"{lab}: L2 over the whole fault (relative)")
+        for ax in axes[:, j]:
+            ax.grid(alpha=0.3, which="both")
+        axes[1, j].set_xlabel("reservoir layer h (m)")
+    axes[0, 0].legend(fontsize=7)
+    axes[1, 0].legend(fontsize=7)
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -235,7 +255,7 @@ def convergence_plot(path, table):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--levels", type=int, nargs="+", default=[0, 1, 2, 3])
-    p.add_argument("--variants", nargs="+", default=list(VARIANTS))
+    p.add_argument("--variants", nargs="+", default=list(VARIANTS), choices=list(VARIANTS))
     p.add_argument("--variant-levels", type=int, nargs="+", default=None,
                    help="levels for the non-default variants (default: --levels)")
     p.add_argument("--domain-level", type=int, default=1)
@@ -254,7 +274,7 @@ def main(argv=None):
             levels = a.levels if (name == "default" or a.variant_levels is None) else a.variant_levels
             runs, rows = [], []
             for k in levels:
-                r = run_level(k, VARIANTS[name], tmp=tmp)
+                r = run_level(k, VARIANTS[name][0], band=VARIANTS[name][1], tmp=tmp)
                 m = metrics(r)
                 runs.append(r)
                 rows.append(m)
@@ -262,10 +282,12 @@ def main(argv=None):
                       f"patches, states {r['states']}, {r['seconds']:.1f} s; Δσ'_n L∞ {m['sn']['linf']:.4f} "
                       f"L2 {m['sn']['l2']:.4f}; Δτ L∞ {m['tau']['linf']:.4f} L2 {m['tau']['l2']:.4f}", flush=True)
             hs = [m["h"] for m in rows]
-            rates = {q: {k2: rate(hs, [m[q][k2] for m in rows]) for k2 in ("linf", "l2", "l2_outside")}
+            rates = {q: {k2: rate(hs, [m[q][k2] for m in rows]) for k2 in ("linf", "linf_25m", "linf_50m", "l2",
+                                                                            "l2_outside")}
                      for q in ("sn", "tau")}
             table[name] = rows
-            result["variants"][name] = {"overrides": VARIANTS[name], "levels": rows, "rates": rates}
+            result["variants"][name] = {"overrides": VARIANTS[name][0], "band": VARIANTS[name][1], "levels": rows,
+                                        "rates": rates}
             result["runs"][name] = [{k2: (v.tolist() if isinstance(v, np.ndarray) else v) for k2, v in r.items()}
                                     for r in runs]
             profile_plot(out / f"displaced_fault_study_{name}.png", runs,
@@ -315,16 +337,19 @@ def main(argv=None):
 
     # summary tables
     for name, v in result["variants"].items():
-        print(f"\n{name} ({' '.join(v['overrides']) or 'defaults'})")
-        print(" h (m) | faces | Δσ'_n L∞ | Δσ'_n L2 | Δτ L∞ | Δτ L2 | Δσ'_n L∞/|C| | Δτ L∞/|C|")
+        print(f"\n{name} ({' '.join(v['overrides']) or 'defaults'}, band {v['band']})")
+        print(" h (m) | faces | Δσ'_n L∞ 2 cells | 25 m | 50 m | L2 | Δτ L∞ 2 cells | 25 m | 50 m | L2 |"
+              " L∞ 2 cells / |C|: Δσ'_n, Δτ")
         for m in v["levels"]:
-            print(f" {m['h']:6.3f} | {m['faces']:5d} | {m['sn']['linf']:.4f} | {m['sn']['l2']:.4f} | {m['tau']['linf']:.4f}"
-                  f" | {m['tau']['l2']:.4f} | {m['sn']['linf_over_C']:.3f} | {m['tau']['linf_over_C']:.3f}")
+            print(f" {m['h']:6.3f} | {m['faces']:5d} | " + " | ".join(
+                f"{m[q]['linf']:.4f} | {m[q]['linf_25m']:.4f} | {m[q]['linf_50m']:.4f} | {m[q]['l2']:.4f}"
+                for q in ("sn", "tau")) + f" | {m['sn']['linf_over_C']:.3f}, {m['tau']['linf_over_C']:.3f}")
         print(" rates:", json.dumps(v["rates"]))
-        print(" peaks (num/ref at the corner faces, corners a, c, b, d... in corners_y order):")
+        print(" corner faces, num / ref face mean (/|C|), corners y = -125 (a), 75 (b), -75 (c), 125 (d):")
         for m in v["levels"]:
-            print(f"  h={m['h']:g}: Δσ'_n " + " ".join(f"{pk['ratio']:.3f}" for pk in m["sn"]["peaks"])
-                  + " | Δτ " + " ".join(f"{pk['ratio']:.3f}" for pk in m["tau"]["peaks"]))
+            print(f"  h={m['h']:g}: Δσ'_n " + " ".join(f"{pk['num_over_C']:+.2f}/{pk['ref_face_over_C']:+.2f}"
+                                                    for pk in m["sn"]["peaks"])
+                  + " | Δτ " + " ".join(f"{pk['num_over_C']:+.2f}/{pk['ref_face_over_C']:+.2f}" for pk in m["tau"]["peaks"]))
     (out / "displaced_fault_study.json").write_text(json.dumps(result, indent=1))
     print(f"wrote {out}/displaced_fault_study.json and PNGs")
 
