@@ -189,6 +189,11 @@ def metrics(r: dict) -> dict:
     return out
 
 
+def _short(v: np.ndarray) -> list:
+    """Per-face arrays for the JSON: 7 significant digits."""
+    return [float(f"{x:.7g}") for x in v.tolist()] if v.dtype.kind == "f" else v.tolist()
+
+
 def rate(hs, errs):
     hs, errs = np.asarray(hs), np.asarray(errs)
     if len(hs) < 2:
@@ -288,7 +293,7 @@ def main(argv=None):
             table[name] = rows
             result["variants"][name] = {"overrides": VARIANTS[name][0], "band": VARIANTS[name][1], "levels": rows,
                                         "rates": rates}
-            result["runs"][name] = [{k2: (v.tolist() if isinstance(v, np.ndarray) else v) for k2, v in r.items()}
+            result["runs"][name] = [{k2: (_short(v) if isinstance(v, np.ndarray) else v) for k2, v in r.items()}
                                     for r in runs]
             profile_plot(out / f"displaced_fault_study_{name}.png", runs,
                          f"displaced fault, {name}: face values (solid) vs reference face means (dotted)")
