@@ -59,6 +59,9 @@ BAND = 12     # aligned meshes: 12 layers of S0 (300 m at level 0) above and bel
 # sides start growing at different elevations), aligned ones have none near the reservoir
 VARIANTS = {"default": ([], 0), "facewise": (["contact.patch_ratio=0"], 0),
             "twosided": (["mechanics.bubbles=two-sided"], 0),
+            "cell": (["mechanics.bubble_stabilisation=cell"], 0),
+            "cell-facewise": (["mechanics.bubble_stabilisation=cell", "contact.patch_ratio=0"], 0),
+            "twosided-facewise": (["mechanics.bubbles=two-sided", "contact.patch_ratio=0"], 0),
             "default-aligned": ([], BAND), "twosided-aligned": (["mechanics.bubbles=two-sided"], BAND)}
 FAULT = DisplacedFault(H, THROW, DIP)
 

@@ -469,10 +469,11 @@ def _study_run(tmp_path, level, dp=-1e7):
 
 
 def test_displaced_fault_refinement_regression(tmp_path):
-    """The coarse levels of docs/displaced_fault_study.md (one-sided bubbles, multiplier patches): face
-    values against the reference face means. Bounds ≈ 1.3 × the measured errors (study, levels 0–1):
-    L∞ outside two cells around each corner / the largest |ref| there: Δλ_n 0.026, Δτ 0.044 at
-    h = 12.5 m; outside 50 m 0.0043, 0.019; L2 over the whole fault 0.179 → 0.117 and 0.550 → 0.294."""
+    """The coarse levels of docs/displaced_fault_study.md (the defaults: one-sided bubbles with
+    face-scaled stabilisation, multiplier patches): face values against the reference face means.
+    Bounds ≈ 1.3 × the measured errors (study, levels 0–1): L∞ outside two cells around each corner
+    / the largest |ref| there: Δλ_n 0.020, Δτ 0.057 at h = 12.5 m; outside 50 m 0.0093, 0.023; L2
+    over the whole fault at h = 12.5 m 0.108 and 0.295, falling from h = 25 m."""
     errs = {}
     for level in (0, 1):
         y1, y2, A, num, ref, state = _study_run(tmp_path, level)
@@ -488,9 +489,9 @@ def test_displaced_fault_refinement_regression(tmp_path):
         errs[level] = {"linf": d[:, keep].max(1) / np.abs(ref[:, keep]).max(1),
                        "far": d[:, far].max(1) / np.abs(ref[:, far]).max(1),
                        "l2": np.sqrt((A * (num - ref) ** 2).sum(1) / (A * ref ** 2).sum(1))}
-    assert (errs[1]["linf"] < [0.035, 0.06]).all(), errs[1]
-    assert (errs[1]["far"] < [0.007, 0.025]).all(), errs[1]
-    assert (errs[1]["l2"] < [0.15, 0.38]).all(), errs[1]
+    assert (errs[1]["linf"] < [0.027, 0.075]).all(), errs[1]
+    assert (errs[1]["far"] < [0.012, 0.031]).all(), errs[1]
+    assert (errs[1]["l2"] < [0.14, 0.38]).all(), errs[1]
     assert (errs[0]["l2"] / errs[1]["l2"] > [1.35, 1.6]).all(), errs   # L2 converging (measured 1.53, 1.87)
     # injection: the static stick problem is linear, everything flips
     *_, num_inj, _, state = _study_run(tmp_path, 0, dp=1e7)

@@ -10,8 +10,8 @@ there pick up tractions no stress path produces (docs/contact_patches.md: 60× t
 overpressure on real grids).
 
 The cure kept here: the multiplier is constant on a **patch**, a connected set of faces of one
-fracture whose area is at least ``ratio`` × the largest A_K of its cells; faces that reach it
-alone stay their own patch (so regular meshes are untouched). The contact conditions are
+fracture whose area is at least ``ratio`` × the largest A_σ = min(A_K⁺, A_K⁻) of its faces;
+faces that reach it alone stay their own patch (so regular meshes are untouched). The contact conditions are
 exact per multiplier, on the patch-mean jump [[u]]_P = Σ_{σ∈P} |σ| [[u]]_σ / |P|, and the
 equilibrium coupling Σ_P |P| λ_P·[[v]]_P = Σ_σ |σ| λ_{P(σ)}·[[v]]_σ keeps the discrete energy
 identity with λ_σ := λ_{P(σ)}. The multiplier space of the patches is a subspace of the
@@ -51,7 +51,7 @@ class ContactPatches:
     fracture : (n_p,) fracture index
     mean : (n_p, n_ff) csr, |σ| / |P| for σ ∈ P: patch means of face values
     ratio : (n_ff,) |σ| / A_K, the face's own area against its cells' cross-sections
-    patch_ratio : (n_p,) |P| / max A_K over the patch's cells
+    patch_ratio : (n_p,) |P| / max A_σ over the patch's faces (A_σ: :func:`cross_section_ratio`)
     """
 
     face_patch: np.ndarray
@@ -96,19 +96,21 @@ def _extent_along(mesh, cells: np.ndarray, origin: np.ndarray, normal: np.ndarra
 
 
 def cross_section_ratio(fm) -> np.ndarray:
-    """(n_ff,) |σ| / max(A_K⁺, A_K⁻) with A_K = |K| / w_K the cross-section of K normal to σ.
+    """(n_ff,) |σ| / min(A_K⁺, A_K⁻) with A_K = |K| / w_K the cross-section of K normal to σ.
 
     1/3 or more on simplices, 1 for a face covering a hexahedron's side, ≪ 1 for slivers and
-    thin strips (the factor of the face's inf-sup constant, module docstring)."""
+    thin strips (the factor of the face's inf-sup constant, module docstring). The smaller
+    cell decides: a face that covers a fine cell's side where a coarse cell lies across the
+    fault (a reservoir layer against its cap rock) is a regular face of the fine cell."""
     net, g, mesh = fm.network, fm.mesh.geometry, fm.mesh
     if net.n_faces == 0:
         return np.zeros(0)
     area = g.face_area[net.faces]
     xc, n = g.face_centroid[net.faces], net.normal
-    ref = np.zeros(net.n_faces)
+    ref = np.full(net.n_faces, np.inf)
     for cells in (net.plus_cell, net.minus_cell):
         w = _extent_along(mesh, cells, xc, n)
-        ref = np.maximum(ref, g.cell_volume[cells] / np.maximum(w, 1e-300))
+        ref = np.minimum(ref, g.cell_volume[cells] / np.maximum(w, 1e-300))
     return area / np.maximum(ref, 1e-300)
 
 
@@ -140,7 +142,7 @@ def contact_patches(fm, ratio: float = 0.0) -> ContactPatches:
     ----------
     fm : FracturedMesh
     ratio : float
-        Smallest |P| / A_K a patch may have (A_K: the largest cross-section of its cells normal
+        Smallest |P| / A_σ a patch may have (A_σ: the smaller cross-section of a face's cells normal
         to its faces, :func:`cross_section_ratio`); 0 keeps one multiplier per face.
 
     Returns
