@@ -1,22 +1,23 @@
 """Multiplier patches: P0 contact multipliers on agglomerates of small fracture faces.
 
 The scheme's multiplier is constant per fracture face (scheme.md §4). Its discrete inf-sup
-constant is controlled face by face by the bubble v_Kσ: testing with it gives |σ| λ_σ against
-a bubble norm ~ h_K^{(d−2)/2} (the stabilisation's weight), so the constant scales like
-√(|σ| / A_K) with A_K = |K| / w_K the cross-section of the cell K normal to σ (w_K: K's extent
-along n_σ). On shape-regular meshes |σ| / A_K ≥ 1/3; on corner-point faults, where faces are
-overlaps of displaced columns, it falls to 10⁻³ on slivers and thin strips, and the multipliers
-there pick up tractions no stress path produces (docs/contact_patches.md: 60× the
-overpressure on real grids).
+constant is controlled face by face by the bubble v_Kσ: testing with it gives |σ| λ_σ against the
+bubble's energy. With the scheme's stabilisation weight h_K^{d−2} that energy does not shrink
+with the face, and the constant scales like √(|σ| / A_K), A_K = |K| / w_K the cross-section of
+the cell normal to σ (w_K: its extent along n_σ). On shape-regular meshes |σ| / A_K ≥ 1/3; on
+corner-point faults, where faces are overlaps of displaced columns, it falls to 10⁻³ on slivers
+and thin strips, and the multipliers there picked up tractions no stress path produces
+(docs/contact_patches.md: 13.6× the overpressure on Emerald, 5,300× without snapping).
 
-The cure kept here: the multiplier is constant on a **patch**, a connected set of faces of one
+Two cures, both on by default: the bubbles' stabilisation weighted by |σ|²/|K|
+(:func:`~polypore.assembly.elasticity.elasticity_matrix`), which keeps the constant on its own,
+and the one here: the multiplier is constant on a **patch**, a connected set of faces of one
 fracture whose area is at least ``ratio`` × the largest A_σ = min(A_K⁺, A_K⁻) of its faces;
-faces that reach it alone stay their own patch (so regular meshes are untouched). The contact conditions are
-exact per multiplier, on the patch-mean jump [[u]]_P = Σ_{σ∈P} |σ| [[u]]_σ / |P|, and the
-equilibrium coupling Σ_P |P| λ_P·[[v]]_P = Σ_σ |σ| λ_{P(σ)}·[[v]]_σ keeps the discrete energy
-identity with λ_σ := λ_{P(σ)}. The multiplier space of the patches is a subspace of the
-face-wise one, with its inf-sup constant bounded below by that of its patches
-(tests/test_contact_patches.py measures both on shrinking and thinning faces).
+faces that reach it alone stay their own patch (regular meshes are untouched). The contact
+conditions are exact per multiplier, on the patch-mean jump [[u]]_P = Σ_{σ∈P} |σ| [[u]]_σ / |P|,
+and the equilibrium coupling Σ_P |P| λ_P·[[v]]_P = Σ_σ |σ| λ_{P(σ)}·[[v]]_σ keeps the discrete
+energy identity with λ_σ := λ_{P(σ)}. The patch multipliers are a subspace of the face-wise ones,
+so their inf-sup constant is at least as large (tests/test_contact_patches.py measures both).
 """
 
 from __future__ import annotations
