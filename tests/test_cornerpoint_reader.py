@@ -192,3 +192,40 @@ def test_generator_rejects_bad_faults():
         generate_grid(4, 4, 2, faults=[FaultSpec("k", 1, 1.0)])
     with pytest.raises(InputError, match="start"):
         generate_grid(4, 4, 2, faults=[FaultSpec("i", 1, 1.0, start=3, stop=2)])
+
+
+@pytest.mark.parametrize("old,new,kw", [
+    (" 0.1 0.2 /", " 1000000000000*0.2 /", "PORO"),             # issue 25: was a MemoryError
+    (" 8*2.0 /", " 999999999999*2.0 /", "ZCORN"),
+    (" 7 8 /", " 1000000000000*7 /", None),                        # unknown keyword: dropped, not expanded
+])
+def test_huge_repeat_counts_are_refused_before_expanding(tmp_path, old, new, kw):
+    assert old in SMALL
+    path = _write(tmp_path / "huge.grdecl", SMALL.replace(old, new))
+    if kw is None:
+        assert "MYPROP" not in read_grdecl(path).properties
+        return
+    with pytest.raises(InputError) as exc:
+        read_grdecl(path)
+    line = SMALL.splitlines().index(kw) + 1
+    assert exc.value.field == f"huge.grdecl:{kw}"
+    assert "SPECGRID 2×1×1 needs" in str(exc.value) and f"keyword on line {line})" in str(exc.value)
+
+
+def test_huge_repeat_count_before_specgrid_hits_the_reader_limit(tmp_path):
+    path = _write(tmp_path / "h.grdecl", "PORO\n 1000000000000*0.2 /\n" + SMALL)
+    with pytest.raises(InputError, match=r"h.grdecl:PORO: PORO has 1000000000000 values, more than the "
+                                         r"100000000 the reader takes per keyword \(repeat counts expanded; "
+                                         r"keyword on line 1\)"):
+        read_grdecl(path)
+
+
+@pytest.mark.parametrize("actnum,value,cell", [(" 1 7 /", "7", "(2, 1, 1)"), (" -1 1 /", "-1", "(1, 1, 1)"),
+                                               (" 0.5 1 /", "0.5", "(1, 1, 1)")])
+def test_actnum_other_than_0_or_1_is_an_error(tmp_path, actnum, value, cell):
+    with pytest.raises(InputError) as exc:
+        read_grdecl(_write(tmp_path / "a.grdecl", SMALL.replace(" 2*1 /", actnum)))
+    assert exc.value.field == "a.grdecl:ACTNUM"
+    assert f"value {value} at cell (i, j, k) = {cell}" in str(exc.value) and "0 (inactive) or 1" in str(exc.value)
+    g = read_grdecl(_write(tmp_path / "ok.grdecl", SMALL.replace(" 2*1 /", " 0 1 /")))
+    assert g.actnum[:, 0, 0].tolist() == [False, True]

@@ -22,6 +22,9 @@ from ...core.errors import InputError
 from ...core.ragged import frozen
 
 FEET = 0.3048  # m
+# Most values a block's repeat counts may expand to when SPECGRID does not bound it (ZCORN of
+# 12.5 M cells): ``1000000000000*0.2`` must be an error, not a MemoryError.
+MAX_EXPANDED = 10**8
 
 # keywords without data (section headers, switches)
 NO_DATA = frozenset({"ECHO", "NOECHO", "RUNSPEC", "GRID", "EDIT", "PROPS", "REGIONS", "SOLUTION", "SUMMARY",
@@ -143,9 +146,28 @@ def _tokens(record: str) -> list:
     return [a if a or b == "" else b for a, b in _TOKEN.findall(record)]
 
 
-def _numbers(block: str, kw: str, where: str) -> np.ndarray:
-    """Numeric values of a data block (repeat counts expanded, ``n*`` defaults as NaN)."""
+def _expanded_size(block: str) -> int:
+    """Number of values a block holds once its repeat counts ``n*value`` are expanded."""
+    return len(block.split()) + sum(int(m.group(1)) - 1 for m in _REPEAT.finditer(block))
+
+
+def _numbers(block: str, kw: str, where: str, limit: tuple | None = None, line=None) -> np.ndarray:
+    """Numeric values of a data block (repeat counts expanded, ``n*`` defaults as NaN).
+
+    ``limit`` is ``(values needed, grid dimensions text)``; repeat counts that would expand
+    beyond it (or beyond :data:`MAX_EXPANDED`) are an error naming ``line()``, the keyword's
+    line, before any memory is taken.
+    """
     if "*" in block:
+        size = _expanded_size(block)
+        need = limit[0] if limit is not None else None
+        if size > MAX_EXPANDED or (need is not None and size > need):
+            at = f" (repeat counts expanded; keyword on line {line()})" if line is not None else \
+                " (repeat counts expanded)"
+            if need is not None and need <= MAX_EXPANDED:
+                raise InputError(f"{where}:{kw}", f"{kw} has {size} values, {limit[1]} needs {need}{at}")
+            raise InputError(f"{where}:{kw}", f"{kw} has {size} values, more than the {MAX_EXPANDED} the "
+                             f"reader takes per keyword{at}")
         block = _REPEAT.sub(lambda m: (" " + (m.group(2) or "nan")) * int(m.group(1)), block)
     if "d" in block or "D" in block:
         block = block.replace("d", "e").replace("D", "e")
@@ -195,6 +217,7 @@ class _Parser:
                 raise InputError(where, f"unexpected text {stray[:40]!r} before keyword {m.group(1).upper()}; "
                                  "data must follow its keyword and end with '/'")
             kw = m.group(1).upper()
+            kw_start = m.start()
             pos = m.end()
             if kw in NO_DATA:
                 continue
@@ -254,7 +277,20 @@ class _Parser:
             elif kw in STRING_DATA:
                 continue             # known keywords we do not use
             else:
-                self.raw[kw] = (_numbers(block, kw, where), where)
+                limit = self._size_needed(kw)
+                if limit is not None and kw not in GEOMETRY and kw not in PROPERTY_UNITS \
+                        and "*" in block and _expanded_size(block) != limit[0]:
+                    continue         # an unknown keyword not per cell is dropped anyway: do not expand it
+                self.raw[kw] = (_numbers(block, kw, where, limit,
+                                         lambda: text.count("\n", 0, kw_start) + 1), where)
+
+    def _size_needed(self, kw: str):
+        """(values keyword ``kw`` needs, the reason) once SPECGRID is known, else None."""
+        if self.specgrid is None:
+            return None
+        (nx, ny, nz), _, dkw = self.specgrid
+        need = {"COORD": 6 * (nx + 1) * (ny + 1), "ZCORN": 8 * nx * ny * nz}.get(kw, nx * ny * nz)
+        return need, f"{dkw} {nx}×{ny}×{nz}"
 
     def _faults(self, text: str, pos: int, where: str) -> int:
         while True:
@@ -293,8 +329,9 @@ def read_grdecl(path) -> CornerPointGrid:
     ------
     InputError
         Naming the file and keyword: a missing SPECGRID, COORD or ZCORN, a wrong number of
-        values ("ZCORN has 123 values, SPECGRID 10×10×3 needs 2400"), a value that is not a
-        number, a FAULTS record outside the grid.
+        values ("ZCORN has 123 values, SPECGRID 10×10×3 needs 2400"; repeat counts are checked
+        before they are expanded, with the keyword's line), a value that is not a number, an
+        ACTNUM value other than 0 or 1, a FAULTS record outside the grid.
     """
     path = Path(path)
     p = _Parser()
@@ -318,9 +355,21 @@ def read_grdecl(path) -> CornerPointGrid:
             raise InputError(f"{src}:{kw}", "has defaulted values (n*); every value must be given")
         return v
 
+    def check_actnum(v, src):
+        # Eclipse's ACTNUM is 0 (inactive) or 1 (active); another value is a broken file, not "active"
+        bad = np.flatnonzero((v != 0) & (v != 1))
+        if bad.size:
+            idx = int(bad[0])
+            i, j, k = idx % nx + 1, idx // nx % ny + 1, idx // (nx * ny) + 1
+            raise InputError(f"{src}:ACTNUM", f"value {v[idx]:g} at cell (i, j, k) = ({i}, {j}, {k}) "
+                             f"({bad.size} such values); ACTNUM takes 0 (inactive) or 1 (active) only")
+
     coord = get("COORD", 6 * (nx + 1) * (ny + 1)) * p.grid_scale
     zcorn = get("ZCORN", 8 * ncell) * p.grid_scale
+    act_src = p.raw.get("ACTNUM", (None, where))[1]
     act = get("ACTNUM", ncell, required=False)
+    if act is not None:
+        check_actnum(act, act_src)
     coord = coord.reshape(ny + 1, nx + 1, 6).transpose(1, 0, 2)
     zcorn = zcorn.reshape(2 * nz, 2 * ny, 2 * nx).T
     actnum = np.ones((nx, ny, nz), bool) if act is None else (act.reshape(nz, ny, nx).T != 0)
