@@ -41,6 +41,9 @@ SOLVER_KEYS = {"mechanics": {"linear", "tolerance", "increment_tolerance", "max_
                "flow": {"linear", "linear_tolerance", "petsc"}}
 SOLVER_KEYS["poromechanics"] = SOLVER_KEYS["mechanics"] | SOLVER_KEYS["flow"]
 _NAME = re.compile(r"[\w.-]+")
+# output times of one run: each writes a set of VTU files and a summary row, so 100,000 of them
+# are hours of writing and gigabytes of files (issue 25), never a considered choice
+MAX_OUTPUT_TIMES = 10_000
 
 
 def physics(given: set, model: str | None) -> str:
@@ -88,6 +91,10 @@ class Time(Table):
         if self.output_times is not None:
             if "output_every" in self.given():
                 fail("give output_every or output_times, not both", key="output_times")
+            n = len(set(self.output_times))
+            if n > MAX_OUTPUT_TIMES:
+                fail(f"{n:,} distinct output times; allowed: at most {MAX_OUTPUT_TIMES:,} (each writes the "
+                     "run's VTU files and a summary row)", key="output_times")
             bad = [v for v in self.output_times if not self.start < v <= self.end]
             if bad:
                 fail(f"{bad[0]!r} lies outside the run ({self.start!r}, {self.end!r}] s", key="output_times")
