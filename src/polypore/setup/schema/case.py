@@ -243,8 +243,8 @@ class Case(Table):
         None, description="one line on what the case is")
     model: choice(*MODELS) | None = Field(None, description="the physics; default: poromechanics with both "
                                           "mechanics and [flow] tables, flow with [flow] only, else mechanics")
-    base_dir: Text | None = Field(None, description="set by polypore: the folder of the case file (relative "
-                                  "mesh files are found there)")
+    base_dir: Text | None = Field(None, description="not a case-file key: set by polypore (load_case) or an API "
+                                  "caller to the folder of the case file, where relative mesh files are found")
     parameters: Annotated[dict, PlainValidator(_parameters), WithJsonSchema(
         {"type": "object", "additionalProperties": {"type": "number"}})] = Field(
         default_factory=dict, description="named numbers usable in every expression")
