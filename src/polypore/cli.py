@@ -257,9 +257,11 @@ def _time_split_lines(totals: dict) -> list[str]:
     (summary.json's ``totals``; docs/parallel.md, "Time split")."""
     if "seconds_krylov" not in totals:
         return []
+    from .solvers.timing import split_labels
+
     rows = totals.get("ranks") or [totals]
-    keys = (("assembly", "assembly"), ("preconditioner", "preconditioner set-up"), ("krylov", "Krylov"),
-            ("other", "other"))
+    # named by what ran: a direct solver's factorisation and solves, not a preconditioner and Krylov
+    keys = tuple((totals.get("labels") or split_labels(totals.get("linear_solver"))).items())
     out = []
     for r, t in enumerate(rows):
         who = f" rank {r}" if len(rows) > 1 else ""

@@ -203,7 +203,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                         **recorder.summary(g.cell_centroid)},
             # the time split covers the whole run, the initial equilibrium included; the plots are
             # part of "other"
-            "totals": {**clock.totals(), "seconds_plots": t_plots,
+            "totals": {**clock.totals(ms.solver), "seconds_plots": t_plots,
                        "newton_iterations": int(sum(s["newton_iterations"] for s in steps))},
         }
         write_json(stage / "summary.json", summary)

@@ -253,7 +253,7 @@ def run_flow(case: CaseFile, out: Path) -> dict:
             "steady": setup.steady,
             "steps": steps,
             "fluxes": bal,
-            "totals": {**clock.totals(), "seconds_by_stage": stage_seconds},
+            "totals": {**clock.totals(setup.solver), "seconds_by_stage": stage_seconds},
         }
         if setup.exact is not None:
             summary["errors"] = flow_errors(model, sol, setup.exact, setup.on_gamma1)

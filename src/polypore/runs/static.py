@@ -98,7 +98,7 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
             "steps": [{"time": 0.0, "newton_iterations": st.newton_iterations, "residual": st.residual,
                        "open": int(np.sum(st.state == 0)), "stick": int(np.sum(st.state == 1)),
                        "slip": int(np.sum(st.state == 2)), "seconds": timings["solve"], "history": st.history}],
-            "totals": {**clock.totals(), "seconds_by_stage": timings},
+            "totals": {**clock.totals(setup.solver), "seconds_by_stage": timings},
         }
         if errors:
             summary["errors"] = errors
