@@ -179,7 +179,7 @@ def test_poromechanics_without_fractures(tmp_path, cli):
     top = vtk_to_numpy(g.GetPoints().GetData())[:, 1] == 1.0
     assert np.allclose(u[top], [0.0, -0.001 * steps[-1]["time"], 0.0])
     for name in ("effective_stress", "total_stress"):
-        assert _names(g.GetCellData().GetArray(name)) == ["xx", "yy", "xy"]
+        assert _names(g.GetCellData().GetArray(name)) == ["xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz"]
     assert _vtk(out / "fractures_0000.vtu").GetNumberOfCells() == 0
 
 
@@ -198,11 +198,13 @@ def test_static_stress_components(tmp_path, cli):
     assert {r.split(",")[col] for r in rows[1:]} <= {"open", "stick", "slip"}
     g = _vtk(out / "bulk_0000.vtu")
     arr = g.GetCellData().GetArray("stress")
-    assert _names(arr) == ["xx", "yy", "xy"]
+    # issue 25: 3 components (xx, yy, xy) were what ParaView takes for a vector; a 3x3 tensor now
+    assert _names(arr) == ["xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz"]
     problem, st, *_ = solve_static(load_case(str(path)))
     S = problem.stress(st)
-    assert np.allclose(vtk_to_numpy(arr), np.stack([S[:, 0, 0], S[:, 1, 1], S[:, 0, 1]], 1), rtol=1e-9,
-                       atol=1e-9 * np.abs(S).max())
+    full = np.zeros((len(S), 3, 3))
+    full[:, :2, :2] = 0.5 * (S + S.transpose(0, 2, 1))
+    assert np.allclose(vtk_to_numpy(arr), full.reshape(-1, 9), rtol=1e-9, atol=1e-9 * np.abs(S).max())
 
 
 def test_3d_tensor_is_vtk_symmetric_order(tmp_path):
