@@ -45,7 +45,7 @@ from pathlib import Path
 
 import numpy as np
 
-from polypore.cases.displaced_fault import DisplacedFault, displaced_fault_grid, scaling_factor
+from polypore.cases.displaced_fault import DisplacedFault, displaced_fault_grid, graded_sizes, scaling_factor
 from polypore.mesh.cornerpoint.generate import write_grdecl
 from polypore.runs.static import solve_static
 from polypore.setup.casefile import load_case
@@ -67,18 +67,8 @@ FAULT = DisplacedFault(H, THROW, DIP)
 
 
 def base_sizes(length: float, s0: float = S0, r: float = RATIO) -> list[float]:
-    """Geometric sizes s0, s0 r, … filling ``length``; the remainder is a cell of its own if it is at
-    least half the next size, else it is added to the last cell."""
-    sizes, s = [], s0
-    while sum(sizes) + s < length:
-        sizes.append(s)
-        s *= r
-    rest = length - sum(sizes)
-    if rest >= 0.5 * s:
-        sizes.append(rest)
-    else:
-        sizes[-1] += rest
-    return sizes
+    """Geometric sizes s0, s0 r, … filling ``length`` (:func:`graded_sizes`)."""
+    return graded_sizes(length, s0, r)
 
 
 def split(sizes, k: int) -> list[float]:

@@ -10,7 +10,8 @@ corner wedges.
 import numpy as np
 import pytest
 
-from polypore.cases.displaced_fault import DisplacedFault, eta, potential_hessian, stress_from_hessian
+from polypore.cases.displaced_fault import (DisplacedFault, eta, graded_sizes, potential_hessian,
+                                          stress_from_hessian)
 
 H_RES = 200.0
 ALPHA, NU, DP = 0.9, 0.25, -1.0e7
@@ -421,18 +422,8 @@ def test_fault_face_means_are_the_integrals_of_the_point_values():
         DisplacedFault(H_RES, 50.0, 60.0, width=1e3).fault_face_means([0.0], [1.0], DP)
 
 
-def _graded(length, s0=25.0, r=1.2):
-    """Sizes s0, s0 r, … filling length (benchmarks/displaced_fault_study.py's base_sizes)."""
-    sizes, s = [], s0
-    while sum(sizes) + s < length:
-        sizes.append(s)
-        s *= r
-    rest = length - sum(sizes)
-    if rest >= 0.5 * s:
-        sizes.append(rest)
-    else:
-        sizes[-1] += rest
-    return sizes
+def _graded(length):
+    return graded_sizes(length, 25.0, 1.2)
 
 
 def _study_run(tmp_path, level, dp=-1e7):

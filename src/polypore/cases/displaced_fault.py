@@ -358,6 +358,22 @@ class DisplacedFault:
         return out
 
 
+def graded_sizes(length: float, s0: float = 25.0, ratio: float = 1.2) -> list[float]:
+    """Cell sizes s0, s0 r, s0 r², … filling ``length`` (m) for :func:`displaced_fault_grid`'s
+    graded ``columns`` and ``layers_*``; the remainder is a cell of its own if it is at least half
+    the next size, else it is added to the last cell."""
+    sizes, s = [], s0
+    while sum(sizes) + s < length:
+        sizes.append(s)
+        s *= ratio
+    rest = length - sum(sizes)
+    if rest >= 0.5 * s:
+        sizes.append(rest)
+    else:
+        sizes[-1] += rest
+    return sizes
+
+
 def displaced_fault_grid(fault: DisplacedFault, *, half_width: float = 2000.0, half_height: float = 2000.0,
                          nx: int = 40, nz_reservoir: int = 8, nz_above: int = 12, nz_below: int = 12,
                          strike_length: float | None = None, depth: float = 3000.0,
