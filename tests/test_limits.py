@@ -109,3 +109,9 @@ def test_guard_limits_are_parameters():
     with pytest.raises(InputError, match=r"^mesh.size: the run would need about .*; this machine has 1 KB"):
         check_limits(spec, memory=1024)
     assert check_limits(spec, memory=math.inf).steps == 104
+
+
+def test_a_tilted_cornerpoint_grid_is_estimated_by_its_cells():
+    spec = load_case("cornerpoint-injection", ["mesh.pillar_angle=60", "mesh.pinchout=[2]"]).spec
+    est = check_limits(spec)
+    assert est.cells == 20 * 10 * 8 and est.field == "mesh.cells" and est.unknowns > est.cells
