@@ -1,6 +1,8 @@
 """Benchmark: fault reactivation by injection on a corner-point grid, end to end (issue 15).
 
     .venv/bin/python benchmarks/cornerpoint_reactivation.py [--cells 60 50 10] [--out DIR] [--json out.json]
+    .venv/bin/python benchmarks/cornerpoint_reactivation.py --cells 60 50 10 --tilt 60 --pinchout 2 9 \\
+        --f1-x 1400 --f2-contact [--out DIR]          # tilted pillars, pinch-outs, crossing contact faults
     .venv/bin/python benchmarks/cornerpoint_reactivation.py --case emerald-injection [--out DIR]
     .venv/bin/python benchmarks/cornerpoint_reactivation.py --plots-only DIR     # a finished run's folder
 
@@ -43,17 +45,67 @@ from polypore.runs.common import peak_memory_mb
 DAY = 86400.0
 
 
-def generated_overrides(nx: int, ny: int, nz: int) -> list[str]:
+def generated_overrides(nx: int, ny: int, nz: int, *, tilt: float = 0.0, pinchout=(), f1_x: float = 1000.0,
+                        f2_contact: bool = False) -> list[str]:
     """--set overrides of cornerpoint-injection for an nx × ny × nz grid (same extent, faults and well
     at the same map positions: F1 at x = 1000 m, F2 at y = 500 m ending at x = 1200 m, the well at
-    (650 m, 450 m) perforated over layers 3–6 of 8, i.e. the depths 40–120 m below the top)."""
-    i_f1 = round(nx * 10 / 20)
+    (650 m, 450 m) perforated over layers 3–6 of 8, i.e. the depths 40–120 m below the top).
+
+    ``tilt``: mesh.pillar_angle (degrees from vertical of the outermost pillars); ``pinchout``:
+    mesh.pinchout (layers of the nz); ``f1_x``: F1's map x at the top (F2 then ends 200 m past it,
+    the well stays 350 m west of it); ``f2_contact``: F2 a contact surface too. With either of
+    the last two, [[fractures]] is rewritten with each fault's friction 1.05 × its in-situ
+    |τ|/σ_n' (:func:`insitu_ratio`; 0.42 → 0.44 on the vertical F1 as in the case)."""
+    i_f1 = round(nx * f1_x / 2000.0)
     j_f2 = round(ny * 5 / 10)
-    stop = round(nx * 12 / 20)
-    col = [int(650.0 / (2000.0 / nx)) + 1, int(450.0 / (1000.0 / ny)) + 1]
+    stop = round(nx * (f1_x + 200.0) / 2000.0)
+    col = [int((f1_x - 350.0) / (2000.0 / nx)) + 1, int(450.0 / (1000.0 / ny)) + 1]
     layers = [int(40.0 / (160.0 / nz)) + 1, int(np.ceil(120.0 / (160.0 / nz)))]
-    return [f"mesh.cells=[{nx}, {ny}, {nz}]", f"mesh.faults.F1.index={i_f1}", f"mesh.faults.F2.index={j_f2}",
-            f"mesh.faults.F2.stop={stop}", f"flow.wells.I1.column={col}", f"flow.wells.I1.layers={layers}"]
+    out = [f"mesh.cells=[{nx}, {ny}, {nz}]", f"mesh.faults.F1.index={i_f1}", f"mesh.faults.F2.index={j_f2}",
+           f"mesh.faults.F2.stop={stop}", f"flow.wells.I1.column={col}", f"flow.wells.I1.layers={layers}"]
+    if tilt:
+        out.append(f"mesh.pillar_angle={float(tilt)}")
+    if pinchout:
+        out.append(f"mesh.pinchout={[int(k) for k in pinchout]}")
+    if f2_contact or f1_x != 1000.0 or tilt:
+        # F1's pillars lean by atan(tan(tilt)·(x − Lx/2)/(Lx/2)) towards +x: the fault's normal
+        th = np.arctan(np.tan(np.radians(tilt)) * (2000.0 / nx * i_f1 - 1000.0) / 1000.0)
+        fr = [f'{{name = "F1", friction = {1.05 * insitu_ratio([np.cos(th), 0.0, np.sin(th)]):.3f}}}']
+        if f2_contact:
+            fr.append(f'{{name = "F2", friction = {1.05 * insitu_ratio([0.0, 1.0, 0.0]):.3f}}}')
+        out.append("fractures=[" + ", ".join(fr) + "]")
+        # monitor points: the well and 50 m west of F1 at 1600 m depth (at the pillars' x there)
+        out.append(f"monitor.points={{well = [{f1_x - 1350.0}, 450.0, -1600.0], "
+                   f"fault = [{f1_x - 1050.0}, 450.0, -1600.0]}}")
+    return out
+
+
+def insitu_ratio(normal, k=0.6, k_max=1.2, azimuth=30.0, rho_r=2300.0, rho_w=1000.0) -> float:
+    """|τ|/σ_n' of cornerpoint-injection's in-situ state on a plane of this normal (x, y, z up): σ_v,
+    k σ_v, k_max σ_v along ``azimuth`` from +x, hydrostatic pressure (the ratio is the same at
+    every depth)."""
+    a = np.radians(azimuth)
+    h = np.array([np.cos(a), np.sin(a), 0.0])
+    s = np.diag([k, k, 1.0]) + (k_max - k) * np.outer(h, h) - rho_w / rho_r * np.eye(3)   # compression > 0, / σ_v
+    n = np.asarray(normal, float) / np.linalg.norm(normal)
+    t = s @ n
+    sn = float(n @ t)
+    return float(np.linalg.norm(t - sn * n) / sn)
+
+
+def grid_angles(case: str, sets: list[str]) -> dict:
+    """Pillar angles from vertical (degrees) of the case's grid (generated, not processed)."""
+    from polypore.mesh.cornerpoint import pillar_angles
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import _cornerpoint_grid
+
+    spec = load_case(case, sets).spec
+    if spec.mesh.generator != "cornerpoint":
+        return {}
+    a = pillar_angles(_cornerpoint_grid(spec))
+    i_f1 = next(int(f.index) for f in spec.mesh.faults if f.name == "F1")
+    return {"median_deg": float(np.median(a)), "max_deg": float(a.max()),
+            "outer_deg": float(max(a[0].max(), a[-1].max())), "F1_deg": float(a[i_f1].max())}
 
 
 def read_faces(folder: Path) -> dict:
@@ -196,6 +248,14 @@ def main(argv=None) -> int:
     ap.add_argument("--out", default="results/cornerpoint-reactivation")
     ap.add_argument("--linear", default="auto")
     ap.add_argument("--set", action="append", default=[], help="more KEY=VALUE overrides")
+    ap.add_argument("--tilt", type=float, default=0.0, metavar="DEG",
+                    help="mesh.pillar_angle: the outermost pillars this far from vertical (generated grid)")
+    ap.add_argument("--pinchout", type=int, nargs="+", default=[], metavar="K",
+                    help="mesh.pinchout: these layers (1-based, of NZ) thin to zero towards x = 0")
+    ap.add_argument("--f1-x", type=float, default=1000.0, metavar="X",
+                    help="map x (m) of F1 at the top; off the centre its pillars lean with --tilt, so it dips")
+    ap.add_argument("--f2-contact", action="store_true",
+                    help="F2 (along x, crossing F1) a contact surface too, not bonded")
     ap.add_argument("--json", default=None)
     ap.add_argument("--plots-only", default=None, metavar="DIR", help="only plot a finished run's folder")
     a = ap.parse_args(argv)
@@ -204,7 +264,12 @@ def main(argv=None) -> int:
         res = report(folder, None, plots(folder))
     else:
         case = a.case or "cornerpoint-injection"
-        sets = ([] if a.case else generated_overrides(*a.cells)) + [f"solver.linear={a.linear}"] + a.set
+        gen = generated_overrides(*a.cells, tilt=a.tilt, pinchout=a.pinchout, f1_x=a.f1_x, f2_contact=a.f2_contact)
+        sets = ([] if a.case else gen) + [f"solver.linear={a.linear}"] + a.set
+        angles = grid_angles(case, sets)
+        if angles:
+            print("pillar angles from vertical: median {median_deg:.1f}°, max {max_deg:.1f}°, outermost "
+                  "{outer_deg:.1f}°, F1's {F1_deg:.1f}°".format(**angles))
         args = ["run", case, "--out", a.out, "--force"]
         for s in sets:
             args += ["--set", s]
@@ -217,6 +282,8 @@ def main(argv=None) -> int:
         folder = Path(a.out)
         res = report(folder, wall, plots(folder))
         res["peak_rss_mb_process"] = peak_memory_mb()
+        res["pillar_angles"] = angles
+        res["command_sets"] = sets
     if a.json:
         Path(a.json).write_text(json.dumps(res, indent=1))
     return 0

@@ -121,3 +121,9 @@ def test_a_tiny_tip_size_of_anisotropic_fronts_is_refused_up_front(tmp_path, cli
     code, _, err = cli("mesh", "cube-slip-3d", "--set", "mesh.tip_size=1e-7", "--out", str(out))
     assert code == 2 and err.startswith("polypore: error: mesh.tip_size: the run would need about "), err
     assert "e+08 cells" in err and "--no-limits" in err and not out.exists()
+
+
+def test_a_tilted_cornerpoint_grid_is_estimated_by_its_cells():
+    spec = load_case("cornerpoint-injection", ["mesh.pillar_angle=60", "mesh.pinchout=[2]"]).spec
+    est = check_limits(spec)
+    assert est.cells == 20 * 10 * 8 and est.field == "mesh.cells" and est.unknowns > est.cells

@@ -188,3 +188,20 @@ def test_order_and_petsc_options_reach_the_model_data(tmp_path):
         load_case(str(path), ["solver.petsc.pc_type=gamg"])
     with pytest.raises(InputError, match=r"^solver.petsc.pc_gamg_threshold: expected a text, a finite number"):
         load_case(str(path), ["solver.linear=petsc", "solver.petsc.pc_gamg_threshold=[0.1]"])
+
+
+def test_cornerpoint_pillar_angle_is_checked_and_reaches_the_grid():
+    from polypore.mesh.cornerpoint import pillar_angles
+    from polypore.setup.meshing import _cornerpoint_grid
+
+    with pytest.raises(InputError) as exc:
+        load_case("cornerpoint-injection", ["mesh.pillar_angle=85"])
+    assert exc.value.field == "mesh.pillar_angle" and "85" in str(exc.value), str(exc.value)
+    with pytest.raises(InputError, match=r"^mesh.pillar_angle: does not apply to generator = 'cartesian' "
+                       r"\(only to cornerpoint\)"):
+        CaseFile("t", None, {"mesh": {**MESH, "pillar_angle": 10.0}}).spec
+    spec = load_case("cornerpoint-injection", ["mesh.pillar_angle=60"]).spec
+    a = pillar_angles(_cornerpoint_grid(spec))
+    assert a[0].max() == pytest.approx(60.0) and a[-1].max() == pytest.approx(60.0)     # x = 0 and x = Lx
+    assert a[10].max() == pytest.approx(0.0, abs=1e-9)                                 # x = Lx/2: vertical
+    assert pillar_angles(_cornerpoint_grid(load_case("cornerpoint-injection").spec)).max() == 0.0

@@ -24,7 +24,8 @@ The tables, their keys and defaults are in :mod:`polypore.setup.schema.geometry`
     # or a corner-point grid (docs/cornerpoint.md): generator = "grdecl" with file = "model.grdecl",
     # or generator = "cornerpoint" with cells, extent, top, dip and [[mesh.faults]]; its boundary
     # parts are west, east, south, north, top, bottom (and internal), and [[fractures]] select faults:
-    # name = "F1", fault = "F1" (default: the name); unselected faults stay bonded; refine = [ni, nj, nk]
+    # name = "F1", fault = "F1" (default: the name); unselected faults stay bonded; pillar_angle = 60.0
+    # tilts the outermost pillars 60° from vertical (fanning out along x); refine = [ni, nj, nk]
     # splits every grid cell along its pillars (mesh/cornerpoint/refine.py)
 
     [[boundaries]]                  # optional extra boundary parts: the faces of part `on` whose
@@ -336,7 +337,8 @@ def _cornerpoint_grid(spec):
         faults = [FaultSpec(f.axis, int(f.index), float(f.throw), start=None if f.start is None else int(f.start),
                             stop=None if f.stop is None else int(f.stop), name=f.name) for f in m.faults]
         grid = generate_grid(nx, ny, nz, extent=tuple(m.extent), top=m.top, dip=m.dip, faults=faults,
-                             pinchout=[int(k) - 1 for k in (m.pinchout or [])], inactive=m.inactive, seed=m.seed)
+                             pinchout=[int(k) - 1 for k in (m.pinchout or [])], inactive=m.inactive, seed=m.seed,
+                             pillar_angle=float(m.pillar_angle))
     return refine_grid(grid, m.refine)
 
 

@@ -12,7 +12,7 @@ See docs/cornerpoint.md.
 """
 
 from .faults import detect_faults, fault_faces, fault_normals, fault_report, fault_table, fractured_mesh
-from .generate import FaultSpec, generate_grid, write_grdecl
+from .generate import FaultSpec, generate_grid, pillar_angles, write_grdecl
 from .info import BOUNDARY_NAMES, CornerPointInfo
 from .permeability import MILLIDARCY, cell_permeability
 from .pillars import pillar_points
@@ -21,7 +21,7 @@ from .reader import CornerPointGrid, read_grdecl
 
 __all__ = [
     "CornerPointGrid", "CornerPointInfo", "FaultSpec", "BOUNDARY_NAMES",
-    "read_grdecl", "write_grdecl", "generate_grid", "process_grid", "pillar_points", "cell_permeability",
+    "read_grdecl", "write_grdecl", "generate_grid", "pillar_angles", "process_grid", "pillar_points", "cell_permeability",
     "MILLIDARCY", "split_nonplanar_faces",
     "detect_faults", "fault_faces", "fault_normals", "fault_report", "fault_table", "fractured_mesh",
 ]

@@ -69,7 +69,7 @@ def _throw_profile(f: FaultSpec, n_along: int) -> tuple[np.ndarray, int, int]:
 def generate_grid(nx: int, ny: int, nz: int, extent=(1000.0, 1000.0, 100.0), *, top: float = 1000.0,
                   dip: float = 0.0, faults=(), pinchout=(), pinch_range=(0.25, 0.5), inactive=0.0,
                   seed: int = 0, left_handed: bool = False, pillar_tilt: float = 0.0,
-                  mapaxes=None, properties: bool = True) -> CornerPointGrid:
+                  pillar_angle: float | None = None, mapaxes=None, properties: bool = True) -> CornerPointGrid:
     """A faulted corner-point grid.
 
     Parameters
@@ -93,6 +93,13 @@ def generate_grid(nx: int, ny: int, nz: int, extent=(1000.0, 1000.0, 100.0), *, 
     pillar_tilt : float
         Pillars fan out: the bottom of the pillar at x is shifted by pillar_tilt·(x − Lx/2)
         along x (non-parallel pillars, non-planar faces).
+    pillar_angle : float, degrees, optional
+        Instead of ``pillar_tilt``: the angle from vertical of the outermost pillars (x = 0
+        and x = Lx), 0 ≤ pillar_angle < 90. Every pillar runs from 1 m above the shallowest
+        corner to 1 m below the deepest, over the length L = zmax − zmin + 2 m, so
+        ``pillar_tilt = tan(pillar_angle) · L / (Lx/2)``; the pillar at x is then inclined by
+        atan(tan(pillar_angle) · |x − Lx/2| / (Lx/2)) in the x-z plane (the ones at x = Lx/2
+        vertical), fanning out downwards (:func:`pillar_angles` measures them).
     mapaxes : (3, 2) array, optional
     properties : bool
         Add PORO (0.2), NTG (1), PERMX = PERMY (100 mD), PERMZ (10 mD), FIPNUM (layer + 1).
@@ -151,6 +158,10 @@ def generate_grid(nx: int, ny: int, nz: int, extent=(1000.0, 1000.0, 100.0), *, 
     X, Y = np.meshgrid(xp, yp, indexing="ij")
     coord = np.zeros((nx + 1, ny + 1, 6))
     coord[..., 0], coord[..., 1], coord[..., 2] = X, Y, zmin - 1.0
+    if pillar_angle is not None:
+        if not 0.0 <= float(pillar_angle) < 90.0:
+            raise InputError("generate.pillar_angle", f"must be in [0, 90) degrees, got {pillar_angle}")
+        pillar_tilt = np.tan(np.radians(float(pillar_angle))) * (zmax - zmin + 2.0) / (0.5 * Lx)
     coord[..., 3] = X + float(pillar_tilt) * (X - 0.5 * Lx)
     coord[..., 4], coord[..., 5] = Y, zmax + 1.0
     if isinstance(inactive, (int, float)):
@@ -184,6 +195,13 @@ def generate_grid(nx: int, ny: int, nz: int, extent=(1000.0, 1000.0, 100.0), *, 
         records = flipped
     return CornerPointGrid((nx, ny, nz), coord, zcorn, actnum, None if mapaxes is None else np.asarray(mapaxes),
                            records, props, "generated")
+
+
+def pillar_angles(grid: CornerPointGrid) -> np.ndarray:
+    """(nx+1, ny+1) angle of every pillar from vertical (degrees), from COORD."""
+    c = np.asarray(grid.coord, float)
+    d = c[..., 3:] - c[..., :3]
+    return np.degrees(np.arctan2(np.hypot(d[..., 0], d[..., 1]), np.abs(d[..., 2])))
 
 
 # -- writer -------------------------------------------------------------------------------------

@@ -24,7 +24,8 @@ GENERATOR_KEYS = {
     "agglomerated": _BOX | {"size", "fracture_size", "grading", "rounds"},
     "file": {"file"},
     "grdecl": {"file", "nonplanar", "region_keyword", "snap", "refine"},
-    "cornerpoint": {"cells", "extent", "top", "dip", "faults", "pinchout", "inactive", "seed", "nonplanar",
+    "cornerpoint": {"cells", "extent", "top", "dip", "faults", "pinchout", "pillar_angle", "inactive", "seed",
+                    "nonplanar",
                     "region_keyword", "snap", "refine"},
 }
 Coordinates = vector((2, 3), "coordinates (m)")
@@ -100,6 +101,11 @@ class Mesh(Table):
     faults: list[CornerPointFault] = Field(default_factory=list, description="cornerpoint: the faults")
     pinchout: vector(None, "layer numbers") | None = Field(None, description="cornerpoint: layers (1-based) "
                                                            "thinning to zero towards x = 0")
+    pillar_angle: number(ge=0, le=80) = Field(0.0, description="cornerpoint: angle from vertical (degrees) of "
+                                              "the outermost pillars (x = 0 and x = Lx); the pillars fan out "
+                                              "downwards along x, symmetrically about x = Lx/2 (vertical there), "
+                                              "the tangent of their angle linear in x (0: vertical pillars; "
+                                              "docs/cornerpoint.md)")
     inactive: number(ge=0, lt=1) = Field(0.0, description="cornerpoint: fraction of randomly inactive cells")
 
     @model_validator(mode="after")
