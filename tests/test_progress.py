@@ -84,8 +84,8 @@ def test_estimate_before_the_first_step_completes():
     st.poll()
     line = out.getvalue()
     assert line.startswith("\r\x1b[K") and "\n" not in line
-    assert "step 1/10 · poromechanics Newton it 0, residual 1.0e+00 · factorising (SuperLU) 30 s" in line
-    assert "left (rough): step 2 min 30 s, run 29 min 30 s" in line
+    assert line == ("\r\x1b[Kstep 1/10 · poromechanics Newton it 0, residual 1.0e+00 · factorising (SuperLU) 30 s"
+                    " · step 32 s, ~2 min 30 s left · run 32 s, ~29 min 30 s left (rough estimate)")
     st.leave("factorising (SuperLU)")
     clk.t = 42.0                      # iteration 1 after 40 s: measured from now on
     st.update(newton=1, residual=1e-3)
@@ -122,8 +122,8 @@ def test_estimate_from_finished_steps_and_krylov_counts():
     assert run_left == pytest.approx(16.0 + 25.0)    # and one step of 25 s after this one
     st.poll()
     text = out.getvalue()
-    assert "step 3/4 · Newton it 0, residual 1.0e+00 · GMRES 4 s · 3 Krylov its · step 4 s, run 54 s" in text
-    assert text.endswith("left: step 16 s, run 41 s")
+    assert text.endswith("step 3/4 · Newton it 0, residual 1.0e+00 · GMRES 4 s · 3 Krylov its · "
+                         "step 4 s, ~16 s left · run 54 s, ~41 s left")
 
 
 def test_static_solve_without_steps_and_growing_levels():
@@ -239,3 +239,56 @@ def test_progress_reports_its_steps_to_the_live_status():
     finally:
         live.install(previous)
     assert "step" not in st.status()
+
+
+def _run_cli(args, env_extra, tty):
+    """Run ``polypore`` in a subprocess, stderr a pseudo-terminal (tty) or a pipe; returns (status, stderr)."""
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, **env_extra, "COLUMNS": "300"}
+    env["PYTHONPATH"] = os.pathsep.join([str(__import__("pathlib").Path(__file__).parents[1] / "src"),
+                                         env.get("PYTHONPATH", "")])
+    cmd = [sys.executable, "-m", "polypore", *args]
+    if not tty:
+        proc = subprocess.run(cmd, env=env, capture_output=True, text=True, timeout=600)
+        return proc.returncode, proc.stderr
+    import pty
+
+    master, slave = pty.openpty()
+    proc = subprocess.Popen(cmd, env=env, stdin=subprocess.DEVNULL, stdout=slave, stderr=slave)
+    os.close(slave)
+    chunks = []
+    while True:
+        try:
+            data = os.read(master, 65536)
+        except OSError:
+            break
+        if not data:
+            break
+        chunks.append(data)
+    os.close(master)
+    return proc.wait(timeout=600), b"".join(chunks).decode(errors="replace")
+
+
+SHORT_DFM = ["run", "dfm-2d", "--set", "time.end=200", "--set", "time.output_times=[200.0]", "--force"]
+
+
+def test_cli_plain_lines_in_a_log(tmp_path):
+    code, err = _run_cli(SHORT_DFM + ["--out", str(tmp_path / "r")], {"POLYPORE_LIVE_INTERVAL": "0.5"}, tty=False)
+    assert code == 0, err
+    still = [l for l in err.splitlines() if "still running:" in l]
+    assert still and all(l.startswith("[polypore] still running: ") for l in still)
+    assert "\r" not in err and "\x1b[K" not in err
+    assert any("step 10/10" in l for l in err.splitlines())        # the per-step lines are kept
+
+
+def test_cli_terminal_line_is_cleared(tmp_path):
+    code, out = _run_cli(SHORT_DFM + ["--out", str(tmp_path / "r")], {}, tty=True)
+    assert code == 0, out
+    assert "\r\x1b[Kstep " in out                        # the live line was drawn ...
+    tail = out[out.rindex("\r\x1b[K"):]
+    assert "· run " not in tail and "case dfm-2d:" in tail    # ... and cleared at the end, before the summary
+    code, out = _run_cli(["-q"] + SHORT_DFM + ["--out", str(tmp_path / "q")], {}, tty=True)
+    assert code == 0 and "\x1b[K" not in out            # --quiet: no live line

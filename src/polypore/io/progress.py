@@ -295,7 +295,10 @@ class LiveStatus:
     # -- the line -----------------------------------------------------------------------------------
 
     def status(self, now: float | None = None) -> str:
-        """The status as text: what runs, elapsed times, estimates (parts joined by ' · ')."""
+        """The status as text, parts joined by ' · ': the step, the Newton iteration and its
+        residual, the phase and how long it has run, the Krylov iterations of the step, the elapsed
+        time of the step and of the run each with its estimate ("~… left"), and "(rough estimate)"
+        while the estimate rests on assumed figures (before an iteration or a step has finished)."""
         now = self.clock() if now is None else now
         step_left, run_left, rough = self.estimate(now)
         with self._state:
@@ -317,19 +320,13 @@ class LiveStatus:
             kry = self._krylov_done + self._krylov_live
             if kry:
                 parts.append(f"{kry} Krylov its")
-            times = []
             if self._steps and self._step >= 1:
-                times.append(f"{self._unit} {clock(now - self._step_start)}")
-            times.append(f"run {clock(now - self.start)}")
-            parts.append(", ".join(times))
-        left = []
-        if step_left is not None and self._steps:
-            left.append(f"{self._unit} {clock(step_left)}")
-        if run_left is not None:
-            left.append(f"run {clock(run_left)}")
-        if left:
-            parts.append(("left (rough): " if rough else "left: ") + ", ".join(left))
-        return " · ".join(parts)
+                parts.append(f"{self._unit} {clock(now - self._step_start)}"
+                             + (f", ~{clock(step_left)} left" if step_left is not None else ""))
+            parts.append(f"run {clock(now - self.start)}" + (f", ~{clock(run_left)} left" if run_left is not None
+                                                             else ""))
+        text = " · ".join(parts)
+        return text + " (rough estimate)" if rough and (step_left is not None or run_left is not None) else text
 
     def poll(self) -> None:
         """One refresh: redraw the terminal line (at most every ``tick`` s), or in plain form write
