@@ -227,16 +227,16 @@ class LiveStatus:
 
     # -- estimates ----------------------------------------------------------------------------------
 
-    def _iteration_seconds(self, nw, now) -> tuple[float | None, bool]:
+    def _iteration_seconds(self, nw, now, samples) -> tuple[float | None, bool]:
         """(seconds of one iteration of the running Newton solve, rough?): the mean of its label's
         last iterations; else, scaled by the unknowns, of the other Newton solves' iterations (the
         initial equilibrium before the first step) or ``seconds_per_unknown`` (rough); never less
         than the current iteration has taken so far."""
-        own = self._samples.get(nw["label"], [])[-5:]
+        own = samples.get(nw["label"], [])[-5:]
         if own:
             return sum(s for s, _ in own) / len(own), False
         n = nw["unknowns"]
-        other = [(s, m) for v in self._samples.values() for s, m in v[-5:] if m]
+        other = [(s, m) for v in samples.values() for s, m in v[-5:] if m]
         if n and other:
             t = n * sum(s / m for s, m in other) / len(other)
         elif n:
@@ -256,6 +256,7 @@ class LiveStatus:
         now = self.clock() if now is None else now
         with self._state:
             nw = dict(self._newton) if self._newton else None
+            samples = {k: v[-5:] for k, v in self._samples.items()}
             done = list(self._finished)
             steps, k, growth = self._steps, self._step, self._growth
             step_elapsed, step_its = now - self._step_start, self._step_its
@@ -267,7 +268,7 @@ class LiveStatus:
         elif nw is not None:
             rough = True
         if nw is not None:
-            t_it, r = self._iteration_seconds(nw, now)
+            t_it, r = self._iteration_seconds(nw, now, samples)
             if t_it is not None:
                 rough = rough or r
                 left = max(its_per_step - step_its, 1.0)            # iterations, the current one included
