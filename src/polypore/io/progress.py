@@ -136,7 +136,8 @@ class LiveStatus:
     prefix : the plain lines' prefix (that of the log lines)
     iterations_per_step : Newton iterations per step assumed before a step has finished
     seconds_per_unknown : seconds of one Newton iteration per unknown assumed before an iteration
-        has finished (a rough first guess: C5 at 46k cells with block-amg on 2 loaded cores)
+        has finished (a first guess between block-amg on C5 at 46k cells, 2.9 s for 175k unknowns,
+        and SuperLU on dfm-3d's default mesh, ~9 s for 22.5k unknowns on 2 loaded cores)
 
     Use ``with LiveStatus() as status:`` (installs it, starts the thread, clears the line at the end);
     :meth:`guard` a logging handler so that its records first clear the line. :meth:`poll` does one
@@ -145,7 +146,7 @@ class LiveStatus:
 
     def __init__(self, stream=None, *, clock=time.perf_counter, terminal: bool | None = None, tick: float = 1.0,
                  interval: float = 30.0, width: int | None = None, prefix: str = "[polypore] ",
-                 iterations_per_step: float = 6.0, seconds_per_unknown: float = 5e-5):
+                 iterations_per_step: float = 6.0, seconds_per_unknown: float = 1e-4):
         self.stream = sys.stderr if stream is None else stream
         self.clock = clock
         if terminal is None:
