@@ -292,3 +292,27 @@ def test_cli_terminal_line_is_cleared(tmp_path):
     assert "· run " not in tail and "case dfm-2d:" in tail    # ... and cleared at the end, before the summary
     code, out = _run_cli(["-q"] + SHORT_DFM + ["--out", str(tmp_path / "q")], {}, tty=True)
     assert code == 0 and "\x1b[K" not in out            # --quiet: no live line
+
+
+def test_cli_live_status_only_on_rank_0_and_not_quiet(monkeypatch):
+    import polypore.cli as cli
+
+    monkeypatch.setattr(cli, "_is_root", lambda: False)
+    with cli._live_status():
+        assert live.current() is None                  # MPI ranks other than 0: no line
+    monkeypatch.setattr(cli, "_is_root", lambda: True)
+    monkeypatch.setenv("POLYPORE_LIVE", "0")
+    with cli._live_status():
+        assert live.current() is None
+    monkeypatch.delenv("POLYPORE_LIVE")
+    level = cli.log.level
+    try:
+        cli.log.setLevel(logging.INFO)
+        with cli._live_status():
+            assert isinstance(live.current(), LiveStatus)
+        assert live.current() is None
+        cli.log.setLevel(logging.WARNING)              # --quiet
+        with cli._live_status():
+            assert live.current() is None
+    finally:
+        cli.log.setLevel(level)
