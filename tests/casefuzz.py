@@ -29,7 +29,7 @@ from polypore.setup.limits import check_limits
 from polypore.setup.schema import Case
 
 NAMES = builtin_names()
-MAX_CELLS = 10_000         # the guards of the fuzz: coarse meshes, short schedules
+MAX_CELLS = 20_000         # the guards of the fuzz: coarse meshes (Emerald: 15,498 grid cells), short schedules
 MAX_STEPS = 10_000
 # the first part of a field an InputError may name: a table or key of the case, or an option
 FIELD_HEADS = Case.keys() | {"--set", "--levels"}

@@ -73,3 +73,41 @@ def test_schema_accepts_every_builtin_and_fills_defaults():
     spec = load_case("dfm-2d").spec
     assert spec.physics == "poromechanics" and spec.mechanics.bubbles == "one-sided" and spec.contact.beta == 1.0
     assert spec.flow.viscosity == 1e-3 and spec.time.max_cuts == 4 and spec.flow.boundary[0].pressure == 1e5
+
+
+def test_base_dir_is_not_a_case_file_key(tmp_path, cli):
+    """Issue 25: ``base_dir = "/etc"`` in a case file made ``mesh.file = "passwd"`` read
+    /etc/passwd. It is set by polypore (the case file's folder), never by the file or --set."""
+    case = tmp_path / "c.toml"
+    case.write_text('base_dir = "/etc"\n[mesh]\ngenerator = "grdecl"\nfile = "passwd"\n')
+    with pytest.raises(InputError) as exc:
+        load_case(str(case))
+    assert exc.value.field == "base_dir" and "not a case-file key" in str(exc.value)
+    case.write_text('[mesh]\ngenerator = "grdecl"\nfile = "passwd"\n')
+    with pytest.raises(InputError) as exc:
+        load_case(str(case), ["base_dir=/etc"])
+    assert exc.value.field == "--set" and "cannot be set" in str(exc.value)
+    code, _, err = cli("mesh", str(case), "--set", "base_dir=/etc", "--out", str(tmp_path / "o"))
+    assert code == 2 and "root" not in err and not (tmp_path / "o").exists()
+    from polypore.setup.schema import json_schema
+    assert "base_dir" not in json_schema()["properties"]
+
+
+def test_case_toml_has_no_base_dir_and_an_absolute_mesh_file(tmp_path):
+    """The copy written into a run folder (case.toml) loads again from there: no base_dir, and a
+    relative mesh.file made absolute against the case file's folder."""
+    from polypore.mesh.cornerpoint import generate_grid, write_grdecl
+
+    (tmp_path / "case").mkdir()
+    write_grdecl(generate_grid(2, 2, 1), tmp_path / "case" / "g.grdecl")
+    src = tmp_path / "case" / "c.toml"
+    src.write_text('[mesh]\ngenerator = "grdecl"\nfile = "g.grdecl"\n')
+    case = load_case(str(src))
+    assert case.spec.base_dir == str((tmp_path / "case").resolve())
+    copy = tmp_path / "run" / "case.toml"
+    copy.parent.mkdir()
+    copy.write_text(case.to_toml())
+    import tomllib
+    assert "base_dir" not in tomllib.loads(copy.read_text())
+    again = load_case(str(copy))
+    assert again.spec.mesh.file == str((tmp_path / "case" / "g.grdecl").resolve())

@@ -195,3 +195,42 @@ def test_case_path_too_long(tmp_path, cli):
     assert code == 2 and "case: case file" in err and "File name too long" in err, err
     code, _, err = cli("run", str(tmp_path / ("c" * 300 + ".toml")))
     assert code == 2 and "File name too long" in err, err
+
+
+FLOW_2D = """
+name = "f"
+model = "flow"
+[mesh]
+generator = "cartesian"
+lower = [0.0, 0.0]
+upper = [1.0, 1.0]
+cells = [2, 2]
+[flow]
+permeability = 1e-12
+[[flow.boundary]]
+name = "xmin"
+pressure = 1e5
+"""
+
+
+@pytest.mark.parametrize("text,old,new,field,commands", [
+    (STATIC_2D, 'name = "ymax"', 'name = "ymaxx"', "mechanics.boundary.ymaxx.name", ("mesh", "run")),
+    # a geometry-first case (no [material] yet, which run requires first): its boundary names are checked
+    (STATIC_2D.replace("[material]\nE = 1e9\nnu = 0.25\n", ""), 'name = "ymax"', 'name = "top"',
+     "mechanics.boundary.top.name", ("mesh",)),
+    (FLOW_2D, 'name = "xmin"', 'name = "left"', "flow.boundary.left.name", ("mesh", "run")),
+])
+def test_mesh_makes_the_case_checks_of_run(tmp_path, cli, text, old, new, field, commands):
+    """Issue 25: `polypore mesh` wrote a mesh for a case whose boundary names `polypore run` refused.
+    Both now refuse it, naming the same field, and write nothing."""
+    assert old in text
+    case = tmp_path / "c.toml"
+    case.write_text(text.replace(old, new))
+    for command in commands:
+        out = tmp_path / command
+        code, _, err = cli(command, str(case), "--out", str(out))
+        assert code == 2 and f"polypore: error: {field}: unknown boundary" in err, (command, err)
+        assert [p.name for p in out.iterdir() if not p.name.startswith(".")] == ["failed.json"]   # no mesh
+    case.write_text(text)
+    code, _, err = cli("mesh", str(case), "--out", str(tmp_path / "ok"))
+    assert code == 0, err

@@ -46,7 +46,8 @@ def test_emerald_fault_names_do_not_depend_on_snap_or_face_option():
     # the names of the shipped case (west = fault_1, north = fault_3) and the two faults that
     # used to swap: fault_4 is the one on 8 pillar pairs
     assert [len(ref[n][0]) for n in ref] == [13, 8, 5, 8, 5]
-    assert len(maps[(SNAP, "keep")]["fault_4"][1]) == 66 and len(maps[(SNAP, "keep")]["fault_5"][1]) == 53
+    # cell pairs with the volume-bounded snapping (66 and 53 when snapping merged 99 node groups)
+    assert len(maps[(SNAP, "keep")]["fault_4"][1]) == 71 and len(maps[(SNAP, "keep")]["fault_5"][1]) == 66
 
 
 @pytest.mark.skipif(not (SHARED / "b.grdecl").is_file(), reason="shared test grids not available")
@@ -56,12 +57,14 @@ def test_second_real_grid_fault_names_are_stable():
 
 
 def test_faults_keyword_names_are_kept_with_slivers():
-    # throws of 1.05 layers: snapping removes the sliver contacts, the FAULTS names stay
+    # throws of 1.05 layers leave sliver contacts; the FAULTS names stay
     g = generate_grid(6, 8, 4, (600.0, 800.0, 40.0), dip=3.0, pillar_tilt=0.05,
                       faults=(FaultSpec("i", 3, 10.5, name="A"), FaultSpec("j", 4, -10.5, start=1, stop=5, name="B")))
     maps = check_identity(g)
     assert set(maps[(0.0, "keep")]) == {"A", "B"}
-    assert maps[(SNAP, "keep")]["A"][1] < maps[(0.0, "keep")]["A"][1]      # the snapping did drop slivers
+    # a subset: the volume-bounded snapping may drop sliver contacts (here it keeps them: merging them
+    # would change the cells' volumes by more than 1e-3), never adds one
+    assert maps[(SNAP, "keep")]["A"][1] <= maps[(0.0, "keep")]["A"][1]
 
 
 def test_geometric_faults_ordered_by_their_first_pillar_pair():

@@ -72,7 +72,10 @@ def test_repeat_count_errors_and_bad_tokens(tmp_path):
     bad = SMALL.replace(" 0.1 0.2 /", " 0.1 abc /")
     with pytest.raises(InputError) as exc:
         read_grdecl(_write(tmp_path / "b.grdecl", bad))
-    assert exc.value.field == "b.grdecl:PORO" and "'abc' is not a number" in str(exc.value)
+    line = SMALL.splitlines().index("PORO") + 1
+    assert exc.value.field == "b.grdecl:PORO" and \
+        f"value 2 (after repeat counts are expanded) is not a number (keyword on line {line})" in str(exc.value)
+    assert "abc" not in str(exc.value)          # the file's text is never quoted (issue 25)
     # defaulted values (n*) are not allowed in the geometry
     bad = SMALL.replace(" 8*2.0 /", " 4* 4*2.0 /")
     with pytest.raises(InputError, match="ZCORN: has defaulted values"):
@@ -85,7 +88,7 @@ def test_repeat_count_errors_and_bad_tokens(tmp_path):
     (" 0.1 0.2 /", " 0.1 /", "PORO", "PORO has 1 values, SPECGRID 2×1×1 needs 2"),
     ("2 1 0  2 1 10 /", "2 1 0  2 1 /", "COORD", "COORD has 35 values, SPECGRID 2×1×1 needs 36"),
     ("F2 2 2 1 1 1 1 I- /", "F2 2 3 1 1 1 1 I- /", "FAULTS", "outside the grid"),
-    ("F2 2 2 1 1 1 1 I- /", "F2 2 2 1 1 1 1 W /", "FAULTS", "face 'W' is not one of"),
+    ("F2 2 2 1 1 1 1 I- /", "F2 2 2 1 1 1 1 W /", "FAULTS", "the record on line 30: the face is not one of"),
     ("SPECGRID\n 2 1 1 1 F", "SPECGRID\n 2 1 1 1 T", "SPECGRID", "radial"),
 ])
 def test_bad_input_names_file_and_keyword(tmp_path, old, new, field, text):
@@ -192,3 +195,63 @@ def test_generator_rejects_bad_faults():
         generate_grid(4, 4, 2, faults=[FaultSpec("k", 1, 1.0)])
     with pytest.raises(InputError, match="start"):
         generate_grid(4, 4, 2, faults=[FaultSpec("i", 1, 1.0, start=3, stop=2)])
+
+
+@pytest.mark.parametrize("old,new,kw", [
+    (" 0.1 0.2 /", " 1000000000000*0.2 /", "PORO"),             # issue 25: was a MemoryError
+    (" 8*2.0 /", " 999999999999*2.0 /", "ZCORN"),
+    (" 7 8 /", " 1000000000000*7 /", None),                        # unknown keyword: dropped, not expanded
+])
+def test_huge_repeat_counts_are_refused_before_expanding(tmp_path, old, new, kw):
+    assert old in SMALL
+    path = _write(tmp_path / "huge.grdecl", SMALL.replace(old, new))
+    if kw is None:
+        assert "MYPROP" not in read_grdecl(path).properties
+        return
+    with pytest.raises(InputError) as exc:
+        read_grdecl(path)
+    line = SMALL.splitlines().index(kw) + 1
+    assert exc.value.field == f"huge.grdecl:{kw}"
+    assert "SPECGRID 2×1×1 needs" in str(exc.value) and f"keyword on line {line})" in str(exc.value)
+
+
+def test_huge_repeat_count_before_specgrid_hits_the_reader_limit(tmp_path):
+    path = _write(tmp_path / "h.grdecl", "PORO\n 1000000000000*0.2 /\n" + SMALL)
+    with pytest.raises(InputError, match=r"h.grdecl:PORO: PORO has 1000000000000 values, more than the "
+                                         r"100000000 the reader takes per keyword \(repeat counts expanded; "
+                                         r"keyword on line 1\)"):
+        read_grdecl(path)
+
+
+@pytest.mark.parametrize("actnum,value,cell", [(" 1 7 /", "7", "(2, 1, 1)"), (" -1 1 /", "-1", "(1, 1, 1)"),
+                                               (" 0.5 1 /", "0.5", "(1, 1, 1)")])
+def test_actnum_other_than_0_or_1_is_an_error(tmp_path, actnum, value, cell):
+    with pytest.raises(InputError) as exc:
+        read_grdecl(_write(tmp_path / "a.grdecl", SMALL.replace(" 2*1 /", actnum)))
+    assert exc.value.field == "a.grdecl:ACTNUM"
+    assert f"value {value} at cell (i, j, k) = {cell}" in str(exc.value) and "0 (inactive) or 1" in str(exc.value)
+    g = read_grdecl(_write(tmp_path / "ok.grdecl", SMALL.replace(" 2*1 /", " 0 1 /")))
+    assert g.actnum[:, 0, 0].tolist() == [False, True]
+
+
+SECRET = "root:x:0:0:root:/root:/bin/bash"
+
+
+@pytest.mark.parametrize("text,message", [
+    (SECRET + "\ndaemon:x:1:1\n", "unexpected text on line 1 after the last keyword"),
+    ("SPECGRID\n 1 1 1 1 F /\n" + SECRET + "\nCOORD\n", "unexpected text on line 3, before the keyword on line 4"),
+    ("SECRET\n" + SECRET + " /\n", "keyword on line 1: value 1 (after repeat counts are expanded) is not a number"),
+    ("GRIDUNIT\n 'root:x' /\n", "unknown unit (line 1)"),
+    ("FAULTS\n 'root' 1 1 1 1 1 1 root:x /\n/\n", "the record on line 2: the face is not one of"),
+    ("FAULTS\n root x 0 /\n/\n", "the record on line 2 has 3 items"),
+    ("SPECGRID\n root x 0 /\n", "nx ny nz must be integers (line 1)"),
+    ("INCLUDE\n root x /\n", "expected one file name, got 2 items (line 1)"),
+    ("SECRET\n 1 2 3\n", "keyword on line 1: has no terminating"),
+])
+def test_errors_never_quote_the_files_text(tmp_path, text, message):
+    """Issue 25: mesh.file may name any readable file (a system file); the reader's errors said
+    "unexpected text 'root:x:0:0:root:/root:/bin/bash...'". They name lines, not text."""
+    with pytest.raises(InputError) as exc:
+        read_grdecl(_write(tmp_path / "passwd", text))
+    assert message in str(exc.value), str(exc.value)
+    assert "root" not in str(exc.value) and "SECRET" not in str(exc.value) and "daemon" not in str(exc.value)

@@ -144,3 +144,27 @@ def test_run_summary_has_the_time_split(tmp_path, cli):
     assert "ranks" not in t and t["peak_memory_mb"] > 0
     line = [ln for ln in text.splitlines() if ln.strip().startswith("time:")]
     assert len(line) == 1 and "preconditioner set-up" in line[0] and "Krylov" in line[0]
+
+
+def test_time_line_names_the_parts_of_a_direct_solve(tmp_path, cli):
+    """Issue 25: a SuperLU run's time line said "preconditioner set-up" and "Krylov". The line
+    and summary.json now name what ran: the factorisation and the triangular solves."""
+    import json
+
+    from conftest import STATIC_2D
+    from polypore.solvers.timing import split_labels
+
+    case = tmp_path / "s.toml"
+    case.write_text(STATIC_2D)
+    out = tmp_path / "o"
+    code, text, err = cli("run", str(case), "--out", str(out), "--set", "solver.linear=superlu")
+    assert code == 0, err
+    line = [ln for ln in text.splitlines() if ln.strip().startswith("time:")]
+    assert len(line) == 1 and "factorisation" in line[0] and "triangular solves" in line[0], line
+    assert "preconditioner" not in line[0] and "Krylov" not in line[0]
+    t = json.loads((out / "summary.json").read_text())["totals"]
+    assert t["linear_solver"] == "superlu" and t["labels"]["preconditioner"] == "factorisation"
+    # PARDISO factorises and solves in one call: one part, no empty "solve" column
+    assert split_labels("pardiso") == {"assembly": "assembly", "preconditioner": "factorisation and solve",
+                                       "other": "other"}
+    assert split_labels("block-amg")["krylov"] == "Krylov iterations"

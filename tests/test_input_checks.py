@@ -179,7 +179,7 @@ def test_poromechanics_without_fractures(tmp_path, cli):
     top = vtk_to_numpy(g.GetPoints().GetData())[:, 1] == 1.0
     assert np.allclose(u[top], [0.0, -0.001 * steps[-1]["time"], 0.0])
     for name in ("effective_stress", "total_stress"):
-        assert _names(g.GetCellData().GetArray(name)) == ["xx", "yy", "xy"]
+        assert _names(g.GetCellData().GetArray(name)) == ["xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz"]
     assert _vtk(out / "fractures_0000.vtu").GetNumberOfCells() == 0
 
 
@@ -198,11 +198,13 @@ def test_static_stress_components(tmp_path, cli):
     assert {r.split(",")[col] for r in rows[1:]} <= {"open", "stick", "slip"}
     g = _vtk(out / "bulk_0000.vtu")
     arr = g.GetCellData().GetArray("stress")
-    assert _names(arr) == ["xx", "yy", "xy"]
+    # issue 25: 3 components (xx, yy, xy) were what ParaView takes for a vector; a 3x3 tensor now
+    assert _names(arr) == ["xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz"]
     problem, st, *_ = solve_static(load_case(str(path)))
     S = problem.stress(st)
-    assert np.allclose(vtk_to_numpy(arr), np.stack([S[:, 0, 0], S[:, 1, 1], S[:, 0, 1]], 1), rtol=1e-9,
-                       atol=1e-9 * np.abs(S).max())
+    full = np.zeros((len(S), 3, 3))
+    full[:, :2, :2] = 0.5 * (S + S.transpose(0, 2, 1))
+    assert np.allclose(vtk_to_numpy(arr), full.reshape(-1, 9), rtol=1e-9, atol=1e-9 * np.abs(S).max())
 
 
 def test_3d_tensor_is_vtk_symmetric_order(tmp_path):
@@ -222,3 +224,27 @@ def test_3d_tensor_is_vtk_symmetric_order(tmp_path):
     with pytest.raises(ValueError, match="3 names for an array of shape"):
         write_unstructured_vtu(tmp_path / "u.vtu", pts, np.arange(4), np.array([4]), np.array([10]),
                                cell_data={"stress": vals}, component_names={"stress": names[:3]})
+
+
+@pytest.mark.parametrize("case,override,fragment", [
+    # issue 25: a 3D bow-tie (edges crossing) and 2D polylines crossing, touching or folding back
+    ("dfm-3d", None, "the polygon intersects itself: the edge from vertex 2 to vertex 3 and the edge from vertex 4 "
+     "to vertex 1 (vertices numbered from 1) cross or touch"),
+    ("single-crack", "[[0.2, 0.2], [0.8, 0.8], [0.8, 0.2], [0.2, 0.8]]",
+     "the polyline intersects itself: the edge from vertex 1 to vertex 2 and the edge from vertex 3 to vertex 4"),
+    ("single-crack", "[[0.2, 0.5], [0.8, 0.5], [0.8, 0.7], [0.5, 0.5]]", "cross or touch"),
+    ("single-crack", "[[0.2, 0.5], [0.8, 0.5], [0.5, 0.5]]", "fold back onto each other"),
+])
+def test_self_intersecting_fracture_is_refused_at_input(tmp_path, cli, case, override, fragment):
+    spec = load_case(case).spec
+    name = spec.fractures[0].name
+    if override is None:       # the case's first fracture, its vertices 3 and 4 swapped: a bow-tie
+        v = [list(p) for p in spec.fractures[0].vertices]
+        assert len(v) == 4
+        override = str([v[0], v[1], v[3], v[2]])
+    with pytest.raises(InputError) as exc:
+        load_case(case, [f"fractures.{name}.vertices={override}"])
+    assert exc.value.field == f"fractures.{name}.vertices" and fragment in str(exc.value), str(exc.value)
+    code, _, err = cli("mesh", case, "--set", f"fractures.{name}.vertices={override}", "--out", str(tmp_path / "o"))
+    assert code == 2 and f"polypore: error: fractures.{name}.vertices: the poly" in err and "Traceback" not in err
+    assert not (tmp_path / "o").exists()

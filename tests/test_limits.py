@@ -109,3 +109,15 @@ def test_guard_limits_are_parameters():
     with pytest.raises(InputError, match=r"^mesh.size: the run would need about .*; this machine has 1 KB"):
         check_limits(spec, memory=1024)
     assert check_limits(spec, memory=math.inf).steps == 104
+
+
+def test_a_tiny_tip_size_of_anisotropic_fronts_is_refused_up_front(tmp_path, cli):
+    """Issue 25: cube-slip-3d with mesh.tip_size = 1e-7 gave no output for 300 s. The generator
+    sweeps 257 rings over ~1500 layers per edge there (graded_positions floors the layers at
+    tip_size near the corners); the estimate counted 2 layers per edge (length / fracture_size)."""
+    est = estimate(load_case("cube-slip-3d", ["mesh.tip_size=1e-7"]).spec)
+    assert est.field == "mesh.tip_size" and est.cells > 1e7, est
+    out = tmp_path / "o"
+    code, _, err = cli("mesh", "cube-slip-3d", "--set", "mesh.tip_size=1e-7", "--out", str(out))
+    assert code == 2 and err.startswith("polypore: error: mesh.tip_size: the run would need about "), err
+    assert "e+08 cells" in err and "--no-limits" in err and not out.exists()

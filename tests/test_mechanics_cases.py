@@ -155,3 +155,23 @@ def test_c2_manufactured_2d_converges_with_all_states(case_name, bubbles):
     assert states == {0, 1, 2}
     assert fit_rate(hs, eg) >= 0.9
     assert fit_rate(hs, el) >= 0.9
+
+
+def test_convergence_table_flags_a_rising_error_and_reports_last_pair_rates():
+    """Issue 25: `polypore convergence coulomb-2d --levels 4` printed fitted rates 1.19 / 1.67
+    while the finest level's error rose (pair rate −0.45), and nothing said so."""
+    from polypore.runs.convergence import format_table, rate_summary
+
+    hs = [0.4, 0.2, 0.1, 0.05]
+    errors = {"lambda_n_h12": [1.0, 0.3, 0.11, 0.15], "grad_u_L2": [1.0, 0.5, 0.25, 0.125]}
+    info = rate_summary(hs, errors)
+    assert info["rising"] == {"lambda_n_h12": [3]}
+    assert info["last_pair_rates"]["lambda_n_h12"] == pytest.approx(-0.4475, abs=1e-3)
+    assert info["last_pair_rates"]["grad_u_L2"] == pytest.approx(1.0)
+    levels = [{"level": k, "h": h, "unknowns": 10 * 4 ** k, "errors": {n: e[k] for n, e in errors.items()}}
+              for k, h in enumerate(hs)]
+    text = format_table({"levels": levels, **info})
+    assert "(-0.45)!" in text and "( 1.00) " in text
+    assert "last-pair rates: lambda_n_h12 -0.45, grad_u_L2 1.00 (levels 2-3)" in text
+    assert "warning: lambda_n_h12 is not monotone: it rises at levels 2->3" in text
+    assert "warning: grad_u_L2" not in text

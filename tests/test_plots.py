@@ -48,3 +48,26 @@ def test_many_fractures_wrap_into_blocks(tmp_path):
     # six fractures wrap into blocks of MAX_COLUMNS: no wider than MAX_COLUMNS single columns
     assert w < MAX_COLUMNS * w1 * 1.05
     assert h > w / 2
+
+
+def test_monitor_panel_labels_what_it_plots(tmp_path, monkeypatch):
+    """Issue 25: dfm-2d's monitor.png called the panel "overpressure (MPa)" while its fracture
+    curves are the fracture pressure p_f itself (absolute: 10 MPa where the overpressure is 0)."""
+    from types import SimpleNamespace
+
+    from polypore.io import plots
+
+    figs = []
+    monkeypatch.setattr(plots, "save", lambda fig, path: figs.append(fig))
+    net = SimpleNamespace(n_faces=0, names=["F1"])
+    t = [0.0, 1.0, 2.0]
+    monitor = {"time": t, "points": {"P": [0.0, 1e5, 2e5]}, "fault_p": {"F1": [1e7, 1.01e7, 1.02e7]},
+               "fault_slip": {"F1": [0.0, 0.0, 1e-4]}}
+    plots.monitor_plots(tmp_path, "c", net, None, monitor, [], None)
+    a1 = figs[0].axes[0]
+    labels = [h.get_label() for h in a1.get_lines()]
+    assert a1.get_ylabel() == "pressure (MPa)"
+    assert labels == ["overpressure p − p⁰ at P", "max fracture pressure p_f on F1"]
+    figs.clear()
+    plots.monitor_plots(tmp_path, "c", net, None, {**monitor, "fault_p": {}, "fault_slip": {}}, [], None)
+    assert figs[0].axes[0].get_ylabel() == "overpressure p − p⁰ (MPa)"

@@ -21,6 +21,9 @@ def test_times_hit_output_times_and_end():
     ({"end": 10.0, "step": 0.0}, "time.step", "does not advance"),
     ({"end": 10.0, "step": 1.0, "output_times": [5.0, 12.0]}, "time.output_times", "outside the run"),
     ({"end": 10.0, "step": 1.0, "typo": 1}, "time.typo", "unknown key"),
+    # issue 25: 100,000 output times were accepted ("about 14 h left")
+    ({"end": 1e5, "step": 1.0, "output_times": [float(k) for k in range(1, 100_001)]}, "time.output_times",
+     "100,000 distinct output times; allowed: at most 10,000"),
 ])
 def test_bad_schedules(table, field, msg):
     case = CaseFile("t", None, {"model": "flow", "mesh": {"generator": "cartesian", "lower": [0, 0], "upper": [1, 1],

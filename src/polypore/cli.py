@@ -230,6 +230,7 @@ def cmd_cases(args) -> int:
 def cmd_mesh(args) -> int:
     from .io.mesh_output import write_mesh_outputs
     from .setup.casefile import load_case
+    from .setup.checks import check_case_on_mesh
     from .setup.meshing import build_fractured_mesh
 
     case = load_case(args.case, args.set or [])
@@ -238,6 +239,7 @@ def cmd_mesh(args) -> int:
         t0 = time.perf_counter()
         with _live_status():
             fm = build_fractured_mesh(case)
+            check_case_on_mesh(case, fm)        # what `polypore run` would refuse is refused here too
             report = write_mesh_outputs(stage, case, fm, seconds=time.perf_counter() - t0)
     _print_mesh_report(report)
     print(f"wrote {out}/: mesh.vtu, fractures.vtu, mesh.json, case.toml")
@@ -283,9 +285,11 @@ def _time_split_lines(totals: dict) -> list[str]:
     (summary.json's ``totals``; docs/parallel.md, "Time split")."""
     if "seconds_krylov" not in totals:
         return []
+    from .solvers.timing import split_labels
+
     rows = totals.get("ranks") or [totals]
-    keys = (("assembly", "assembly"), ("preconditioner", "preconditioner set-up"), ("krylov", "Krylov"),
-            ("other", "other"))
+    # named by what ran: a direct solver's factorisation and solves, not a preconditioner and Krylov
+    keys = tuple((totals.get("labels") or split_labels(totals.get("linear_solver"))).items())
     out = []
     for r, t in enumerate(rows):
         who = f" rank {r}" if len(rows) > 1 else ""

@@ -294,6 +294,40 @@ class DisplacedFault:
         C = scaling_factor(dp, alpha, nu)
         return C * (np.pi * sn * sn * k - sn * cs * L), -C * (np.pi * sn * cs * k + sn * sn * L)
 
+    def fault_face_means(self, y1, y2, dp: float, alpha: float = 1.0, nu: float = 0.25) -> dict:
+        """Means of Δσ_n, Δτ and Δσ'_n over fault segments [y1, y2] (elevations, y1 < y2, m), exact,
+        for the laterally infinite reservoir (``width`` None): the mean of ln|y − y_k| over a segment
+        is [F(y2 − y_k) − F(y1 − y_k)] / (y2 − y1), F(u) = u ln|u| − u, finite even at a corner.
+
+        A segment should not straddle a corner (k(y) is taken at its midpoint, as is Δp_f). These
+        are the values a P0 (face-wise constant) approximation converges to face by face; point
+        values at a face's centroid are not, next to the logarithmic corners. Returns a dict of
+        (n,) arrays ``sigma_n``, ``tau``, ``dp_fault``, ``sigma_n_eff`` (Pa, conventions of the module).
+        """
+        if self.width is not None:
+            raise ValueError("the face means are for laterally infinite blocks (width=None)")
+        y1 = np.atleast_1d(np.asarray(y1, float))
+        y2 = np.atleast_1d(np.asarray(y2, float))
+        ya, yb, yc, yd = self.corners_y
+
+        def F(u):
+            with np.errstate(divide="ignore", invalid="ignore"):
+                return np.where(u == 0.0, 0.0, u * np.log(np.abs(u)) - u)
+
+        def mean_ln(yk):
+            return (F(y2 - yk) - F(y1 - yk)) / (y2 - y1)
+
+        L = mean_ln(ya) + mean_ln(yd) - mean_ln(yb) - mean_ln(yc)
+        ym = 0.5 * (y1 + y2)
+        k = ((ym > ya) & (ym < yb)).astype(float) + ((ym > yc) & (ym < yd))
+        th = np.radians(self.dip)
+        sn, cs = np.sin(th), np.cos(th)
+        C = scaling_factor(dp, alpha, nu)
+        sig_n = C * (np.pi * sn * sn * k - sn * cs * L)
+        dpf = self.fault_pressure(ym, dp)
+        return {"sigma_n": sig_n, "tau": -C * (np.pi * sn * cs * k + sn * sn * L), "dp_fault": dpf,
+                "sigma_n_eff": sig_n - dpf}
+
     def corner_log_coefficients(self, dp: float, alpha: float = 1.0, nu: float = 0.25) -> np.ndarray:
         """(4, 2) coefficients (Pa) of ln r in (Δσ_n, Δτ) on the fault near the corners y_a … y_d:
         Δσ_n ≈ A_n ln r + O(1), Δτ ≈ A_τ ln r + O(1) at a distance r from the corner along the fault.
@@ -324,9 +358,26 @@ class DisplacedFault:
         return out
 
 
+def graded_sizes(length: float, s0: float = 25.0, ratio: float = 1.2) -> list[float]:
+    """Cell sizes s0, s0 r, s0 r², … filling ``length`` (m) for :func:`displaced_fault_grid`'s
+    graded ``columns`` and ``layers_*``; the remainder is a cell of its own if it is at least half
+    the next size, else it is added to the last cell."""
+    sizes, s = [], s0
+    while sum(sizes) + s < length:
+        sizes.append(s)
+        s *= ratio
+    rest = length - sum(sizes)
+    if rest >= 0.5 * s:
+        sizes.append(rest)
+    else:
+        sizes[-1] += rest
+    return sizes
+
+
 def displaced_fault_grid(fault: DisplacedFault, *, half_width: float = 2000.0, half_height: float = 2000.0,
                          nx: int = 40, nz_reservoir: int = 8, nz_above: int = 12, nz_below: int = 12,
-                         strike_length: float | None = None, depth: float = 3000.0):
+                         strike_length: float | None = None, depth: float = 3000.0,
+                         columns=None, layers_above=None, layers_below=None, core: float = 0.0):
     """A corner-point grid of the displaced fault: a slab one cell thick along the strike.
 
     Grid frame (GRDECL): x across the fault, y along the strike, depth positive downwards; the
@@ -356,6 +407,19 @@ def displaced_fault_grid(fault: DisplacedFault, *, half_width: float = 2000.0, h
         Slab thickness along y (default half_width / nx · 2, one column's width).
     depth : float, m
         Depth of the reservoir's mid-plane.
+    columns : sequence of float, m, optional
+        Graded columns: widths from the fault outwards (the same on both sides; the outermost
+        is stretched or shrunk so that they reach ±half_width, and must stay positive); replaces
+        ``nx`` (nx = 2 len(columns)). Default: nx equal columns.
+    layers_above, layers_below : sequence of float, m, optional
+        Graded layers: thicknesses from the reservoir's top upwards (resp. its bottom downwards),
+        the outermost adjusted on each side to reach ±half_height; replace nz_above / nz_below.
+        Default: equal layers.
+    core : float, m
+        Pillars with |x| ≤ core at the reservoir's mid-plane are parallel to the fault, the lean
+        then decreasing linearly to vertical at ±half_width (0: from the fault on, as by
+        default). With graded columns this keeps the cells near the fault the same when the
+        slab is made wider or taller. Pillars do not cross if half_height < (half_width − core) tan θ.
 
     Returns
     -------
@@ -368,21 +432,45 @@ def displaced_fault_grid(fault: DisplacedFault, *, half_width: float = 2000.0, h
     from ..core.errors import InputError
     from ..mesh.cornerpoint.reader import CornerPointGrid
 
+    L, D, h = float(half_width), float(half_height), float(fault.thickness)
+    if columns is not None:
+        nx = 2 * len(columns)
     nx = int(nx)
     if nx < 2 or nx % 2:
         raise InputError("displaced_fault_grid.nx", f"must be even and ≥ 2, got {nx}")
-    L, D, h = float(half_width), float(half_height), float(fault.thickness)
+    if layers_above is not None:
+        nz_above = len(layers_above)
+    if layers_below is not None:
+        nz_below = len(layers_below)
     cot = fault.cot
-    if D * cot >= L:
-        raise InputError("displaced_fault_grid", f"pillars cross: half_height {D} ≥ half_width tan θ = {L / cot:g}")
+    core = float(core)
+    if not 0.0 <= core < L:
+        raise InputError("displaced_fault_grid.core", f"must be in [0, half_width), got {core}")
+    if D * cot >= L - core:
+        raise InputError("displaced_fault_grid", f"pillars cross: half_height {D} ≥ (half_width − core) tan θ = "
+                         f"{(L - core) / cot:g}")
     ya, yb, yc, yd = fault.corners_y
     if min(ya, yc) <= -D or max(yb, yd) >= D:
         raise InputError("displaced_fault_grid", "the reservoir must lie inside the slab")
     ly = 2.0 * L / nx if strike_length is None else float(strike_length)
     nz = int(nz_above) + int(nz_reservoir) + int(nz_below)
-    # pillars: x at elevation y is x0 + w cot θ y, w = 1 on the fault, 0 on the lateral sides
-    x0 = np.linspace(-L, L, nx + 1)
-    w = 1.0 - np.abs(x0) / L
+
+    def graded(sizes, length, what):
+        # offsets 0 … length of the given cell sizes, the last one adjusted to reach length
+        off = np.concatenate([[0.0], np.cumsum(np.asarray(sizes, float))])
+        off[-1] = length
+        if np.any(np.diff(off) <= 0.0):
+            raise InputError(f"displaced_fault_grid.{what}", f"the sizes do not fit in {length:g} m with a positive "
+                             "outermost cell")
+        return off
+
+    # pillars: x at elevation y is x0 + w cot θ y, w = 1 on the fault (and in the core), 0 on the lateral sides
+    if columns is None:
+        x0 = np.linspace(-L, L, nx + 1)
+    else:
+        half = graded(columns, L, "columns")
+        x0 = np.concatenate([-half[::-1], half[1:]])
+    w = np.clip((L - np.abs(x0)) / (L - core), 0.0, 1.0)
     ytop, ybot = D, -D
     coord = np.zeros((nx + 1, 2, 6))
     for j, yy in enumerate((0.0, ly)):
@@ -391,9 +479,11 @@ def displaced_fault_grid(fault: DisplacedFault, *, half_width: float = 2000.0, h
 
     def horizons(bottom, top):
         # elevations of the nz + 1 horizons of one side, top down
-        return np.concatenate([np.linspace(D, top, int(nz_above) + 1),
-                               np.linspace(top, bottom, int(nz_reservoir) + 1)[1:],
-                               np.linspace(bottom, -D, int(nz_below) + 1)[1:]])
+        up = (np.linspace(D, top, int(nz_above) + 1) if layers_above is None
+              else top + graded(layers_above, D - top, "layers_above")[::-1])
+        down = (np.linspace(bottom, -D, int(nz_below) + 1) if layers_below is None
+                else bottom - graded(layers_below, bottom + D, "layers_below"))
+        return np.concatenate([up, np.linspace(top, bottom, int(nz_reservoir) + 1)[1:], down[1:]])
 
     side = np.where(np.arange(nx) < nx // 2, 0, 1)                       # 0 hanging wall, 1 footwall
     H = np.stack([horizons(ya, yb), horizons(yc, yd)])                    # (2, nz + 1)

@@ -1,22 +1,23 @@
 """Multiplier patches: P0 contact multipliers on agglomerates of small fracture faces.
 
 The scheme's multiplier is constant per fracture face (scheme.md §4). Its discrete inf-sup
-constant is controlled face by face by the bubble v_Kσ: testing with it gives |σ| λ_σ against
-a bubble norm ~ h_K^{(d−2)/2} (the stabilisation's weight), so the constant scales like
-√(|σ| / A_K) with A_K = |K| / w_K the cross-section of the cell K normal to σ (w_K: K's extent
-along n_σ). On shape-regular meshes |σ| / A_K ≥ 1/3; on corner-point faults, where faces are
-overlaps of displaced columns, it falls to 10⁻³ on slivers and thin strips, and the multipliers
-there pick up tractions no stress path produces (docs/contact_patches.md: 60× the
-overpressure on real grids).
+constant is controlled face by face by the bubble v_Kσ: testing with it gives |σ| λ_σ against the
+bubble's energy. With the scheme's stabilisation weight h_K^{d−2} that energy does not shrink
+with the face, and the constant scales like √(|σ| / A_K), A_K = |K| / w_K the cross-section of
+the cell normal to σ (w_K: its extent along n_σ). On shape-regular meshes |σ| / A_K ≥ 1/3; on
+corner-point faults, where faces are overlaps of displaced columns, it falls to 10⁻³ on slivers
+and thin strips, and the multipliers there picked up tractions no stress path produces
+(docs/contact_patches.md: 13.6× the overpressure on Emerald, 5,300× without snapping).
 
-The cure kept here: the multiplier is constant on a **patch**, a connected set of faces of one
-fracture whose area is at least ``ratio`` × the largest A_K of its cells; faces that reach it
-alone stay their own patch (so regular meshes are untouched). The contact conditions are
-exact per multiplier, on the patch-mean jump [[u]]_P = Σ_{σ∈P} |σ| [[u]]_σ / |P|, and the
-equilibrium coupling Σ_P |P| λ_P·[[v]]_P = Σ_σ |σ| λ_{P(σ)}·[[v]]_σ keeps the discrete energy
-identity with λ_σ := λ_{P(σ)}. The multiplier space of the patches is a subspace of the
-face-wise one, with its inf-sup constant bounded below by that of its patches
-(tests/test_contact_patches.py measures both on shrinking and thinning faces).
+Two cures, both on by default: the bubbles' stabilisation weighted by |σ|²/|K|
+(:func:`~polypore.assembly.elasticity.elasticity_matrix`), which keeps the constant on its own,
+and the one here: the multiplier is constant on a **patch**, a connected set of faces of one
+fracture whose area is at least ``ratio`` × the largest A_σ = min(A_K⁺, A_K⁻) of its faces;
+faces that reach it alone stay their own patch (regular meshes are untouched). The contact
+conditions are exact per multiplier, on the patch-mean jump [[u]]_P = Σ_{σ∈P} |σ| [[u]]_σ / |P|,
+and the equilibrium coupling Σ_P |P| λ_P·[[v]]_P = Σ_σ |σ| λ_{P(σ)}·[[v]]_σ keeps the discrete
+energy identity with λ_σ := λ_{P(σ)}. The patch multipliers are a subspace of the face-wise ones,
+so their inf-sup constant is at least as large (tests/test_contact_patches.py measures both).
 """
 
 from __future__ import annotations
@@ -51,7 +52,7 @@ class ContactPatches:
     fracture : (n_p,) fracture index
     mean : (n_p, n_ff) csr, |σ| / |P| for σ ∈ P: patch means of face values
     ratio : (n_ff,) |σ| / A_K, the face's own area against its cells' cross-sections
-    patch_ratio : (n_p,) |P| / max A_K over the patch's cells
+    patch_ratio : (n_p,) |P| / max A_σ over the patch's faces (A_σ: :func:`cross_section_ratio`)
     """
 
     face_patch: np.ndarray
@@ -96,19 +97,21 @@ def _extent_along(mesh, cells: np.ndarray, origin: np.ndarray, normal: np.ndarra
 
 
 def cross_section_ratio(fm) -> np.ndarray:
-    """(n_ff,) |σ| / max(A_K⁺, A_K⁻) with A_K = |K| / w_K the cross-section of K normal to σ.
+    """(n_ff,) |σ| / min(A_K⁺, A_K⁻) with A_K = |K| / w_K the cross-section of K normal to σ.
 
     1/3 or more on simplices, 1 for a face covering a hexahedron's side, ≪ 1 for slivers and
-    thin strips (the factor of the face's inf-sup constant, module docstring)."""
+    thin strips (the factor of the face's inf-sup constant, module docstring). The smaller
+    cell decides: a face that covers a fine cell's side where a coarse cell lies across the
+    fault (a reservoir layer against its cap rock) is a regular face of the fine cell."""
     net, g, mesh = fm.network, fm.mesh.geometry, fm.mesh
     if net.n_faces == 0:
         return np.zeros(0)
     area = g.face_area[net.faces]
     xc, n = g.face_centroid[net.faces], net.normal
-    ref = np.zeros(net.n_faces)
+    ref = np.full(net.n_faces, np.inf)
     for cells in (net.plus_cell, net.minus_cell):
         w = _extent_along(mesh, cells, xc, n)
-        ref = np.maximum(ref, g.cell_volume[cells] / np.maximum(w, 1e-300))
+        ref = np.minimum(ref, g.cell_volume[cells] / np.maximum(w, 1e-300))
     return area / np.maximum(ref, 1e-300)
 
 
@@ -140,7 +143,7 @@ def contact_patches(fm, ratio: float = 0.0) -> ContactPatches:
     ----------
     fm : FracturedMesh
     ratio : float
-        Smallest |P| / A_K a patch may have (A_K: the largest cross-section of its cells normal
+        Smallest |P| / A_σ a patch may have (A_σ: the smaller cross-section of a face's cells normal
         to its faces, :func:`cross_section_ratio`); 0 keeps one multiplier per face.
 
     Returns

@@ -320,8 +320,10 @@ def poro_plots(stage, case_name, mesh, net, s, snapshots, series, t_end):
 def monitor_plots(stage, case_name, net, s, monitor: dict, snapshots, onset, unit_time=None, time_label=None):
     """Monitoring figures of a poromechanics run (C6).
 
-    monitor : {"time": (n,), "points": {name: (n,) overpressure, Pa}, "fault_p": {fracture: (n,)
-        max p_f, Pa}, "fault_slip": {fracture: (n,) max slip since the start, m}}
+    monitor : {"time": (n,), "points": {name: (n,) overpressure p − p⁰, Pa}, "fault_p": {fracture:
+        (n,) max p_f, Pa: the model's fracture pressure, absolute without [initial_state] and
+        relative to the hydrostatic reference with it}, "fault_slip": {fracture: (n,) max slip
+        since the start, m}}
     snapshots : output snapshots with "time", "slip" (n_ff,) and "aperture" (n_ff,)
     onset : time of the first slipping face (s) or None
     unit_time, time_label : seconds per plotted time unit and the axis label; by default the
@@ -339,10 +341,12 @@ def monitor_plots(stage, case_name, net, s, monitor: dict, snapshots, onset, uni
         time_label = f"t ({name})"
     t = np.asarray(monitor["time"]) / unit_time
     fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4.6), layout="constrained")
+    # two quantities share the panel: the matrix overpressure at the points and the fractures'
+    # pressure p_f itself (absolute without [initial_state]), so each curve says which it is
     for name, p in monitor["points"].items():
-        a1.plot(t, np.asarray(p) / 1e6, label=f"matrix at {name}")
+        a1.plot(t, np.asarray(p) / 1e6, label=f"overpressure p − p⁰ at {name}")
     for name, p in monitor["fault_p"].items():
-        a1.plot(t, np.asarray(p) / 1e6, "--", label=f"max p_f on {name}")
+        a1.plot(t, np.asarray(p) / 1e6, "--", label=f"max fracture pressure p_f on {name}")
     for name, v in monitor["fault_slip"].items():
         a2.plot(t, np.asarray(v) * 1e3, label=f"max slip on {name}")
     for a in (a1, a2):
@@ -354,7 +358,7 @@ def monitor_plots(stage, case_name, net, s, monitor: dict, snapshots, onset, uni
         if handles:                # the slip panel is empty without fractures
             # below the axes: inside, the legend hides the curves it names
             a.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.16), ncol=2, frameon=False)
-    a1.set_ylabel("overpressure (MPa)")
+    a1.set_ylabel("pressure (MPa)" if monitor["fault_p"] else "overpressure p − p⁰ (MPa)")
     a2.set_ylabel("slip |[[u − u⁰]]_τ| (mm)")
     fig.suptitle(f"{case_name}: pressures and slip against time", fontsize=10)
     save(fig, stage / "monitor.png")

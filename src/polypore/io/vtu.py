@@ -19,9 +19,11 @@ Cells
 Arrays
 ------
 2-vectors are padded to 3 components (z = 0). Stress tensors are written by
-:func:`symmetric_tensor` as their independent components with VTK ``ComponentName``
-attributes (ParaView shows them by name): ``xx, yy, zz, xy, yz, xz`` in 3D — VTK's order
-of a symmetric tensor, which ParaView treats as one — and ``xx, yy, xy`` in 2D.
+:func:`symmetric_tensor` with VTK ``ComponentName`` attributes (ParaView shows them by
+name): in 3D the independent components ``xx, yy, zz, xy, yz, xz`` — VTK's order of a
+symmetric tensor, which ParaView treats as one; in 2D the full 3×3 tensor (9 components,
+row by row), the in-plane tensor with zero z row and column (σ_zz is not computed). Three
+components, as 2D tensors were written before, are what ParaView takes for a vector.
 """
 
 from __future__ import annotations
@@ -41,7 +43,8 @@ __all__ = ["VTK_LINE", "VTK_POLYGON", "VTK_POLYHEDRON", "bulk_cells", "fracture_
            "write_bulk_vtu", "write_fracture_vtu", "write_pvd", "write_unstructured_vtu"]
 
 VTK_LINE, VTK_POLYGON, VTK_POLYHEDRON = 3, 7, 42
-TENSOR_COMPONENTS = {2: ("xx", "yy", "xy"), 3: ("xx", "yy", "zz", "xy", "yz", "xz")}
+TENSOR_COMPONENTS = {2: ("xx", "xy", "xz", "yx", "yy", "yz", "zx", "zy", "zz"),
+                     3: ("xx", "yy", "zz", "xy", "yz", "xz")}
 
 _VTK_TYPE = {
     ("f", 4): "Float32", ("f", 8): "Float64",
@@ -77,16 +80,23 @@ def _vtk_array(a, n: int, what: str) -> np.ndarray:
 
 
 def symmetric_tensor(S) -> tuple[np.ndarray, tuple]:
-    """Independent components of (n, d, d) symmetric tensors and their names.
+    """(n, d, d) symmetric tensors as VTK stores tensors, and their component names.
 
-    Returns ((n, 3) in 2D / (n, 6) in 3D array, names ``TENSOR_COMPONENTS[d]``); the
-    off-diagonal entries are ½(S_ij + S_ji).
+    Returns (array, names ``TENSOR_COMPONENTS[d]``): in 3D the (n, 6) independent components
+    (VTK's symmetric-tensor order); in 2D the (n, 9) 3×3 tensor row by row, the z row and
+    column zero, which ParaView recognises as a tensor (a 3-component array it takes for a
+    vector). Off-diagonal entries are ½(S_ij + S_ji).
     """
     S = np.asarray(S, float)
     if S.ndim != 3 or S.shape[1] != S.shape[2] or S.shape[1] not in (2, 3):
         raise ValueError(f"symmetric_tensor: expected an (n, 2, 2) or (n, 3, 3) array, got shape {S.shape}")
     d = S.shape[1]
     names = TENSOR_COMPONENTS[d]
+    if d == 2:
+        sym = 0.5 * (S + S.transpose(0, 2, 1))
+        full = np.zeros((S.shape[0], 3, 3))
+        full[:, :2, :2] = sym
+        return full.reshape(-1, 9), names
     ij = ["xyz".index(a) for a in "".join(names)]
     i, j = np.array(ij[0::2]), np.array(ij[1::2])
     return 0.5 * (S[:, i, j] + S[:, j, i]), names

@@ -131,6 +131,57 @@ def validate_spec(spec: FractureSpec, dim: int, box: np.ndarray | None = None, t
     return {"vertices": V, "normal": n, "centre": c, "e1": e1, "e2": e2, "poly2d": P, "measure": area}
 
 
+def self_intersection(vertices, closed: bool, tol: float = 1e-9):
+    """The first pair (i, j), i < j, of edges of a polyline (``closed``: a polygon, edge i from
+    vertex i to vertex i+1 mod k) that cross, touch or overlap although they are not neighbours,
+    or that are neighbours folding back onto each other; None for a simple one.
+
+    3D vertices are projected on their best-fit plane (planarity is checked elsewhere). Edges of
+    zero length are left out (a repeated vertex has its own message). O(k²) work, O(k) memory.
+    """
+    V = np.asarray(vertices, float)
+    if V.ndim != 2 or len(V) < 3 or V.shape[1] not in (2, 3) or not np.all(np.isfinite(V)):
+        return None
+    if V.shape[1] == 3:
+        c = V.mean(0)
+        P = (V - c) @ np.linalg.svd(V - c)[2][:2].T
+    else:
+        P = V
+    A = P if closed else P[:-1]
+    B = np.roll(P, -1, axis=0) if closed else P[1:]
+    m = len(A)
+    eps = tol * max(float(np.ptp(P, axis=0).max()), 1e-300)
+    live = np.linalg.norm(B - A, axis=1) > eps
+
+    def cross(p, q, r):
+        return (q[..., 0] - p[..., 0]) * (r[..., 1] - p[..., 1]) - (q[..., 1] - p[..., 1]) * (r[..., 0] - p[..., 0])
+
+    def near(p, a, b):     # distance from points p to segments [a, b]
+        ab = b - a
+        t = np.clip(np.einsum("...d,...d->...", p - a, ab) / np.maximum(np.einsum("...d,...d->...", ab, ab), 1e-300),
+                    0.0, 1.0)
+        return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+
+    for i in range(m - 1):
+        if not live[i]:
+            continue
+        j = np.arange(i + 1, m)
+        j = j[live[j]]
+        if not j.size:
+            continue
+        a0, a1, b0, b1 = A[i], B[i], A[j], B[j]
+        neighbour = (j == i + 1) | (closed & (i == 0) & (j == m - 1))
+        proper = (cross(a0, a1, b0) * cross(a0, a1, b1) < 0) & (cross(b0, b1, a0[None]) * cross(b0, b1, a1[None]) < 0)
+        touch = np.minimum.reduce([near(b0, a0, a1), near(b1, a0, a1), near(a0[None], b0, b1), near(a1[None], b0, b1)])
+        # neighbours share a vertex: only the far end of one lying on the other (a fold back) counts
+        far = np.where(j == i + 1, np.minimum(near(a0[None], b0, b1), near(b1, a0, a1)),
+                       np.minimum(near(a1[None], b0, b1), near(b0, a0, a1)))
+        hit = np.where(neighbour, far <= eps, proper | (touch <= eps))
+        if hit.any():
+            return i, int(j[np.argmax(hit)])
+    return None
+
+
 def segment_distances(P: np.ndarray, A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """(n, m) distances (m) from points P (n, d) to the segments [A_j, B_j] (m, d)."""
     AB = B - A

@@ -51,11 +51,15 @@ class RunClock:
         SPLIT.reset()
         self.wall, self.cpu = time.perf_counter(), time.process_time()
 
-    def totals(self) -> dict:
+    def totals(self, solver=None) -> dict:
         """seconds, seconds_{assembly, linear, preconditioner, krylov, other}, their CPU seconds
-        under ``cpu`` and peak_memory_mb of this process; in a distributed run also ``ranks``, the
-        same for every rank (a collective call: every rank makes it at the same point)."""
-        out = summary_split(time.perf_counter() - self.wall, time.process_time() - self.cpu)
+        under ``cpu`` and peak_memory_mb of this process; with the run's ``solver`` (a LinearSolver)
+        also ``linear_solver`` and ``labels``, what the categories measured with it (a direct
+        solver's factorisation and solves, not a preconditioner and Krylov iterations); in a
+        distributed run also ``ranks``, the same for every rank (a collective call: every rank
+        makes it at the same point)."""
+        out = summary_split(time.perf_counter() - self.wall, time.process_time() - self.cpu,
+                            backend=getattr(solver, "backend", None))
         out["peak_memory_mb"] = peak_memory_mb()
         ctx = context()
         if ctx is not None and ctx.size > 1:

@@ -26,6 +26,7 @@ from .. import __version__
 from ..core import live
 from ..core.errors import InputError, RunError
 from ..io.atomic import atomic_write_text
+from ..io.legend import POROMECHANICS_ARRAYS, write_legend
 from ..io.monitor3d import StepRecorder, collect, from_run_directory
 from ..io.plots import monitor_plots, poro_plots, time_unit
 from ..io.plots3d import write_3d_plots
@@ -205,9 +206,10 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                         **recorder.summary(g.cell_centroid)},
             # the time split covers the whole run, the initial equilibrium included; the plots are
             # part of "other"
-            "totals": {**clock.totals(), "seconds_plots": t_plots,
+            "totals": {**clock.totals(ms.solver), "seconds_plots": t_plots,
                        "newton_iterations": int(sum(s["newton_iterations"] for s in steps))},
         }
+        write_legend(stage, summary, *POROMECHANICS_ARRAYS)     # README.txt and summary's "legend"
         write_json(stage / "summary.json", summary)
     return summary
 

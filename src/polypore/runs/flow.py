@@ -22,6 +22,7 @@ import numpy as np
 from .. import __version__
 from ..cases.flow_exact import flow_errors, slot_values
 from ..io.atomic import atomic_write_text
+from ..io.legend import write_legend
 from ..io.progress import Progress
 from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
 from ..io.vtu import write_bulk_vtu, write_fracture_vtu, write_pvd
@@ -253,10 +254,13 @@ def run_flow(case: CaseFile, out: Path) -> dict:
             "steady": setup.steady,
             "steps": steps,
             "fluxes": bal,
-            "totals": {**clock.totals(), "seconds_by_stage": stage_seconds},
+            "totals": {**clock.totals(setup.solver), "seconds_by_stage": stage_seconds},
         }
         if setup.exact is not None:
             summary["errors"] = flow_errors(model, sol, setup.exact, setup.on_gamma1)
+        write_legend(stage, summary, bulk=("pressure", "darcy_velocity") + (
+            ("pressure_exact", "pressure_error") if setup.exact is not None else ()),
+            fractures=("p_f", "trace_plus", "trace_minus", "aperture", "exchange"))
         write_json(stage / "summary.json", summary)
     return summary
 

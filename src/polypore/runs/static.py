@@ -18,6 +18,7 @@ from ..io.plots import fracture_profiles, state_map
 from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
 from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu, write_pvd
 from ..io.atomic import atomic_write_text
+from ..io.legend import write_legend
 from ..models.contact import STATE_NAMES
 from ..models.fracture_geometry import arc_length
 from ..models.mechanics import ContactMechanics
@@ -98,10 +99,12 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
             "steps": [{"time": 0.0, "newton_iterations": st.newton_iterations, "residual": st.residual,
                        "open": int(np.sum(st.state == 0)), "stick": int(np.sum(st.state == 1)),
                        "slip": int(np.sum(st.state == 2)), "seconds": timings["solve"], "history": st.history}],
-            "totals": {**clock.totals(), "seconds_by_stage": timings},
+            "totals": {**clock.totals(setup.solver), "seconds_by_stage": timings},
         }
         if errors:
             summary["errors"] = errors
+        write_legend(stage, summary, bulk=("displacement", "stress", "von_mises"),
+                     fractures=("jump", "jump_n", "jump_t", "lambda", "lambda_n", "lambda_t", "state"))
         write_json(stage / "summary.json", summary)
     return summary
 

@@ -83,8 +83,16 @@ class CaseFile:
     overrides: tuple = field(default=(), repr=False)
 
     def to_toml(self) -> str:
-        """The fully resolved case as TOML text (written as ``case.toml``)."""
-        return tomli_w.dumps(self.data)
+        """The fully resolved case as TOML text (written as ``case.toml``): without ``base_dir``,
+        which is not a case-file key, and with a relative ``mesh.file`` made absolute against it,
+        so that the copy runs from another folder."""
+        data = {k: v for k, v in self.data.items() if k != "base_dir"}
+        base = self.data.get("base_dir")
+        mesh = data.get("mesh")
+        if base and isinstance(mesh, dict) and isinstance(mesh.get("file"), str) \
+                and not Path(mesh["file"]).is_absolute() and (Path(base) / mesh["file"]).is_file():
+            data["mesh"] = {**mesh, "file": str(Path(base) / mesh["file"])}
+        return tomli_w.dumps(data)
 
     @cached_property
     def spec(self) -> Case:
@@ -135,13 +143,20 @@ def load_case(name_or_path: str, overrides: Iterable[str] = ()) -> CaseFile:
         if "name" not in data:
             stem_name = path.stem
         data.setdefault("name", path.stem)
-        data.setdefault("base_dir", str(path.resolve().parent))
     else:
         raise InputError("case", f"unknown case {name_or_path!r}; built-in cases are {', '.join(builtin_names())}, "
                          "or give the path of a .toml case file")
+    if "base_dir" in data:
+        raise InputError("base_dir", "is not a case-file key: polypore sets it to the case file's folder, where "
+                         "relative mesh files are found; remove it (mesh.file may be an absolute path)")
     data = copy.deepcopy(data)
     for item in overrides:
+        if item.partition("=")[0].strip().split(".")[0] == "base_dir":
+            raise InputError("--set", f"{item.partition('=')[0].strip()!r} cannot be set: base_dir is the case "
+                             "file's folder, set by polypore")
         apply_override(data, item)
+    if source is not None and not source.startswith("builtin:"):
+        data["base_dir"] = str(path.resolve().parent)
     if overrides:
         _check_depth(data, "the case with its --set overrides")
     case = CaseFile(str(data.get("name", path.stem)), source, data, overrides)

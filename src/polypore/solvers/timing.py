@@ -1,5 +1,5 @@
-"""Where the time of a run goes: assembly, preconditioner set-up, Krylov iterations (docs/parallel.md,
-"Time split").
+"""Where the time of a run goes: assembly, preconditioner set-up (or factorisation), Krylov
+iterations (or triangular solves) (docs/parallel.md, "Time split").
 
 One accumulator per process (per rank in a distributed run), fed where the work is done: Newton
 times the model's residual and Jacobian (``assembly``) and its linear solves (``linear``); inside
@@ -20,6 +20,23 @@ from contextlib import contextmanager
 from ..core import live
 
 CATEGORIES = ("assembly", "linear", "preconditioner", "krylov")
+# The categories keep their names in summary.json (seconds_preconditioner, seconds_krylov), but a
+# direct solver has no preconditioner and no Krylov iterations: printed, the parts are named by
+# what ran with the run's backend (issue 25: "preconditioner set-up" on a SuperLU run misled).
+DIRECT = ("superlu", "pardiso")
+
+
+def split_labels(backend: str | None) -> dict:
+    """{category: what it measured} for a run whose linear solves used ``backend`` (the resolved
+    ``solver.linear``; None: unknown, the iterative names). A category that stays empty with the
+    backend (Krylov with PARDISO, which factorises and solves in one call) is left out."""
+    if backend == "pardiso":
+        return {"assembly": "assembly", "preconditioner": "factorisation and solve", "other": "other"}
+    if backend == "superlu":
+        return {"assembly": "assembly", "preconditioner": "factorisation", "krylov": "triangular solves",
+                "other": "other"}
+    return {"assembly": "assembly", "preconditioner": "preconditioner set-up", "krylov": "Krylov iterations",
+            "other": "other"}
 
 PHASES = {"assembly": "assembling", "linear": "linear solve", "preconditioner": "preconditioner set-up",
           "krylov": "Krylov iterations"}
@@ -60,15 +77,18 @@ SPLIT = TimeSplit()
 """The process's accumulator (reset by the run drivers at the start of a run)."""
 
 
-def summary_split(total_wall: float, total_cpu: float, start: dict | None = None) -> dict:
+def summary_split(total_wall: float, total_cpu: float, start: dict | None = None,
+                  backend: str | None = None) -> dict:
     """The time split of a run for summary.json: seconds_{assembly, linear, preconditioner, krylov,
     other} (wall) and the same under ``cpu``; ``other`` is the total minus assembly, preconditioner
-    and Krylov (so it holds the matrix conversions, the outputs and the set-up).
+    and Krylov (so it holds the matrix conversions, the outputs and the set-up). With ``backend``
+    also ``linear_solver`` and ``labels``, what each category measured (:func:`split_labels`).
 
     Parameters
     ----------
     total_wall, total_cpu : the run's wall and CPU seconds
     start : a :meth:`TimeSplit.snapshot` taken at the start of the run (None: zeros)
+    backend : the run's resolved linear solver backend, or None
     """
     now = SPLIT.snapshot()
     out, cpu = {}, {}
@@ -79,4 +99,7 @@ def summary_split(total_wall: float, total_cpu: float, start: dict | None = None
         dest["seconds_other"] = total - s["assembly"] - s["preconditioner"] - s["krylov"]
         dest["seconds"] = total
     out["cpu"] = cpu
+    if backend is not None:
+        out["linear_solver"] = backend
+        out["labels"] = split_labels(backend)
     return out

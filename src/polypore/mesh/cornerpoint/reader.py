@@ -22,6 +22,9 @@ from ...core.errors import InputError
 from ...core.ragged import frozen
 
 FEET = 0.3048  # m
+# Most values a block's repeat counts may expand to when SPECGRID does not bound it (ZCORN of
+# 12.5 M cells): ``1000000000000*0.2`` must be an error, not a MemoryError.
+MAX_EXPANDED = 10**8
 
 # keywords without data (section headers, switches)
 NO_DATA = frozenset({"ECHO", "NOECHO", "RUNSPEC", "GRID", "EDIT", "PROPS", "REGIONS", "SOLUTION", "SUMMARY",
@@ -44,6 +47,8 @@ _KEYWORD = re.compile(r"^[ \t]*([A-Za-z][A-Za-z0-9_+\-]{0,7})[ \t]*\r?$", re.M)
 _COMMENT_OR_QUOTE = re.compile(r"'[^'\n]*'|--[^\n]*")
 _REPEAT = re.compile(r"(?<![^\s])(\d+)\*(\S*)")
 _TOKEN = re.compile(r"'([^']*)'|(\S+)")
+# Errors name the file, the keyword and the line, but never quote the file's text: mesh.file may
+# point at any file the user can read (a system file), and messages end up in logs and web pages.
 
 
 @dataclass(frozen=True, eq=False)
@@ -138,14 +143,42 @@ def _find_slash(text: str, start: int, quoted: bool) -> int:
         pos = q2 + 1
 
 
+def _known(kw: str) -> bool:
+    """Whether ``kw`` is a keyword this reader knows by name."""
+    return kw in NO_DATA or kw in STRING_DATA or kw in GEOMETRY or kw in PROPERTY_UNITS or kw == "FAULTS"
+
+
 def _tokens(record: str) -> list:
     """Tokens of a record with words and quoted strings (quotes removed)."""
     return [a if a or b == "" else b for a, b in _TOKEN.findall(record)]
 
 
-def _numbers(block: str, kw: str, where: str) -> np.ndarray:
-    """Numeric values of a data block (repeat counts expanded, ``n*`` defaults as NaN)."""
+def _expanded_size(block: str) -> int:
+    """Number of values a block holds once its repeat counts ``n*value`` are expanded."""
+    return len(block.split()) + sum(int(m.group(1)) - 1 for m in _REPEAT.finditer(block))
+
+
+def _on_line(line) -> str:
+    return f" (keyword on line {line()})" if line is not None else ""
+
+
+def _numbers(block: str, kw: str, where: str, limit: tuple | None = None, line=None) -> np.ndarray:
+    """Numeric values of a data block (repeat counts expanded, ``n*`` defaults as NaN).
+
+    ``limit`` is ``(values needed, grid dimensions text)``; repeat counts that would expand
+    beyond it (or beyond :data:`MAX_EXPANDED`) are an error naming ``line()``, the keyword's
+    line, before any memory is taken.
+    """
     if "*" in block:
+        size = _expanded_size(block)
+        need = limit[0] if limit is not None else None
+        if size > MAX_EXPANDED or (need is not None and size > need):
+            at = f" (repeat counts expanded; keyword on line {line()})" if line is not None else \
+                " (repeat counts expanded)"
+            if need is not None and need <= MAX_EXPANDED:
+                raise InputError(f"{where}:{kw}", f"{kw} has {size} values, {limit[1]} needs {need}{at}")
+            raise InputError(f"{where}:{kw}", f"{kw} has {size} values, more than the {MAX_EXPANDED} the "
+                             f"reader takes per keyword{at}")
         block = _REPEAT.sub(lambda m: (" " + (m.group(2) or "nan")) * int(m.group(1)), block)
     if "d" in block or "D" in block:
         block = block.replace("d", "e").replace("D", "e")
@@ -155,12 +188,13 @@ def _numbers(block: str, kw: str, where: str) -> np.ndarray:
             return np.fromstring(block, sep=" ")
         except (ValueError, DeprecationWarning):
             pass
-    for tok in block.split():
+    for k, tok in enumerate(block.split()):
         try:
             float(tok)
         except ValueError:
-            raise InputError(f"{where}:{kw}", f"{tok!r} is not a number; {kw} takes numbers (repeat counts "
-                             "written n*value) ended by '/'") from None
+            raise InputError(f"{where}:{kw}", f"value {k + 1} (after repeat counts are expanded) is not a number"
+                             f"{_on_line(line)}; {kw} takes numbers (repeat counts written n*value) ended by "
+                             "'/'") from None
     raise InputError(f"{where}:{kw}", "could not read the numbers")  # pragma: no cover
 
 
@@ -182,29 +216,41 @@ class _Parser:
             raise InputError(str(path), f"cannot read the file: {exc.strerror or exc}") from None
         text = _strip_comments(text)
         where = path.name
+
+        def line_of(at: int) -> int:
+            return text.count("\n", 0, at) + 1
         pos, n = 0, len(text)
+        seen, seen_line = 0, 1       # lines counted incrementally: one pass over the text in all
         while pos < n:
             m = _KEYWORD.search(text, pos)
             if not m:
                 rest = text[pos:].strip()
                 if rest and rest != "/":
-                    raise InputError(where, f"unexpected text {rest[:40]!r} after the last keyword")
+                    raise InputError(where, f"unexpected text on line {line_of(pos + text[pos:].index(rest[0]))} "
+                                     "after the last keyword; a GRDECL file is keywords, each alone on its line, "
+                                     "with data ended by '/'")
                 break
             stray = text[pos:m.start()].strip().strip("/").strip()
             if stray:
-                raise InputError(where, f"unexpected text {stray[:40]!r} before keyword {m.group(1).upper()}; "
-                                 "data must follow its keyword and end with '/'")
+                at = pos + text[pos:m.start()].index(stray[0])
+                raise InputError(where, f"unexpected text on line {line_of(at)}, before the keyword on line "
+                                 f"{line_of(m.start())}; data must follow its keyword and end with '/'")
             kw = m.group(1).upper()
+            kw_start = m.start()
             pos = m.end()
+            seen_line += text.count("\n", seen, kw_start)
+            seen = kw_start
+            # an unknown keyword is named by its line in errors: a word of an arbitrary file is not quoted
+            label = kw if _known(kw) else f"keyword on line {seen_line}"
             if kw in NO_DATA:
                 continue
             if kw == "FAULTS":
-                pos = self._faults(text, pos, where)
+                pos = self._faults(text, pos, where, line_of)
                 continue
             quoted = kw in STRING_DATA
             slash = _find_slash(text, pos, quoted)
             if slash < 0:
-                raise InputError(f"{where}:{kw}", "has no terminating '/'")
+                raise InputError(f"{where}:{label}", "has no terminating '/'")
             block = text[pos:slash]
             if kw not in STRING_DATA and kw not in GEOMETRY and kw not in PROPERTY_UNITS:
                 # an unknown keyword without data: the next keyword comes before any '/'
@@ -215,7 +261,8 @@ class _Parser:
             if kw == "INCLUDE":
                 toks = _tokens(block)
                 if len(toks) != 1:
-                    raise InputError(f"{where}:INCLUDE", f"expected one file name, got {toks!r}")
+                    raise InputError(f"{where}:INCLUDE", f"expected one file name, got {len(toks)} items (line "
+                                     f"{line_of(kw_start)})")
                 inc = Path(toks[0])
                 if not inc.is_absolute():
                     inc = path.parent / inc
@@ -225,9 +272,11 @@ class _Parser:
                 try:
                     dims = tuple(int(t) for t in toks[:3])
                 except ValueError:
-                    raise InputError(f"{where}:{kw}", f"nx ny nz must be integers, got {toks[:3]!r}") from None
+                    raise InputError(f"{where}:{kw}", f"nx ny nz must be integers (line {line_of(kw_start)})") \
+                        from None
                 if len(dims) != 3 or min(dims) < 1:
-                    raise InputError(f"{where}:{kw}", f"needs three positive integers nx ny nz, got {toks[:3]!r}")
+                    raise InputError(f"{where}:{kw}", f"needs three positive integers nx ny nz, got {dims} (line "
+                                     f"{line_of(kw_start)})")
                 if kw == "SPECGRID" and len(toks) >= 5 and toks[4].upper() == "T":
                     raise InputError(f"{where}:SPECGRID", "radial (cylindrical, 'T') grids are not supported; "
                                      "allowed: Cartesian corner-point grids ('F')")
@@ -246,7 +295,8 @@ class _Parser:
                 elif unit.startswith("MET") or unit == "M":
                     scale = 1.0
                 else:
-                    raise InputError(f"{where}:{kw}", f"unknown unit {toks[0]!r}; allowed: METRES, FEET")
+                    raise InputError(f"{where}:{kw}", f"unknown unit (line {line_of(kw_start)}); allowed: METRES, "
+                                     "FEET")
                 if kw == "GRIDUNIT":
                     self.grid_scale = scale
                 else:
@@ -254,28 +304,43 @@ class _Parser:
             elif kw in STRING_DATA:
                 continue             # known keywords we do not use
             else:
-                self.raw[kw] = (_numbers(block, kw, where), where)
+                limit = self._size_needed(kw)
+                if limit is not None and kw not in GEOMETRY and kw not in PROPERTY_UNITS \
+                        and "*" in block and _expanded_size(block) != limit[0]:
+                    continue         # an unknown keyword not per cell is dropped anyway: do not expand it
+                self.raw[kw] = (_numbers(block, label, where, limit,
+                                         lambda: text.count("\n", 0, kw_start) + 1), where)
 
-    def _faults(self, text: str, pos: int, where: str) -> int:
+    def _size_needed(self, kw: str):
+        """(values keyword ``kw`` needs, the reason) once SPECGRID is known, else None."""
+        if self.specgrid is None:
+            return None
+        (nx, ny, nz), _, dkw = self.specgrid
+        need = {"COORD": 6 * (nx + 1) * (ny + 1), "ZCORN": 8 * nx * ny * nz}.get(kw, nx * ny * nz)
+        return need, f"{dkw} {nx}×{ny}×{nz}"
+
+    def _faults(self, text: str, pos: int, where: str, line_of) -> int:
         while True:
             slash = _find_slash(text, pos, True)
             if slash < 0:
                 raise InputError(f"{where}:FAULTS", "has no terminating '/' (end the list with an empty record '/')")
             toks = _tokens(text[pos:slash])
+            start = pos + len(text[pos:slash]) - len(text[pos:slash].lstrip())
             pos = slash + 1
             if not toks:
                 return pos
+            rec = f"the record on line {line_of(start)}"
             if len(toks) != 8:
-                raise InputError(f"{where}:FAULTS", f"record {' '.join(toks)!r} has {len(toks)} items; expected "
+                raise InputError(f"{where}:FAULTS", f"{rec} has {len(toks)} items; expected "
                                  "'name' i1 i2 j1 j2 k1 k2 face")
             try:
                 rng = tuple(int(t) for t in toks[1:7])
             except ValueError:
-                raise InputError(f"{where}:FAULTS", f"record {' '.join(toks)!r}: i1 i2 j1 j2 k1 k2 must be "
+                raise InputError(f"{where}:FAULTS", f"{rec}: i1 i2 j1 j2 k1 k2 must be "
                                  "integers") from None
             face = FACES.get(toks[7].upper())
             if face is None:
-                raise InputError(f"{where}:FAULTS", f"record {' '.join(toks)!r}: face {toks[7]!r} is not one of "
+                raise InputError(f"{where}:FAULTS", f"{rec}: the face is not one of "
                                  "X, X-, Y, Y-, Z, Z- (or I, J, K)")
             self.faults.setdefault(toks[0], []).append(rng + (face,))
 
@@ -293,8 +358,9 @@ def read_grdecl(path) -> CornerPointGrid:
     ------
     InputError
         Naming the file and keyword: a missing SPECGRID, COORD or ZCORN, a wrong number of
-        values ("ZCORN has 123 values, SPECGRID 10×10×3 needs 2400"), a value that is not a
-        number, a FAULTS record outside the grid.
+        values ("ZCORN has 123 values, SPECGRID 10×10×3 needs 2400"; repeat counts are checked
+        before they are expanded, with the keyword's line), a value that is not a number, an
+        ACTNUM value other than 0 or 1, a FAULTS record outside the grid.
     """
     path = Path(path)
     p = _Parser()
@@ -318,9 +384,21 @@ def read_grdecl(path) -> CornerPointGrid:
             raise InputError(f"{src}:{kw}", "has defaulted values (n*); every value must be given")
         return v
 
+    def check_actnum(v, src):
+        # Eclipse's ACTNUM is 0 (inactive) or 1 (active); another value is a broken file, not "active"
+        bad = np.flatnonzero((v != 0) & (v != 1))
+        if bad.size:
+            idx = int(bad[0])
+            i, j, k = idx % nx + 1, idx // nx % ny + 1, idx // (nx * ny) + 1
+            raise InputError(f"{src}:ACTNUM", f"value {v[idx]:g} at cell (i, j, k) = ({i}, {j}, {k}) "
+                             f"({bad.size} such values); ACTNUM takes 0 (inactive) or 1 (active) only")
+
     coord = get("COORD", 6 * (nx + 1) * (ny + 1)) * p.grid_scale
     zcorn = get("ZCORN", 8 * ncell) * p.grid_scale
+    act_src = p.raw.get("ACTNUM", (None, where))[1]
     act = get("ACTNUM", ncell, required=False)
+    if act is not None:
+        check_actnum(act, act_src)
     coord = coord.reshape(ny + 1, nx + 1, 6).transpose(1, 0, 2)
     zcorn = zcorn.reshape(2 * nz, 2 * ny, 2 * nx).T
     actnum = np.ones((nx, ny, nz), bool) if act is None else (act.reshape(nz, ny, nx).T != 0)

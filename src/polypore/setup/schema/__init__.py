@@ -28,6 +28,7 @@ def json_schema() -> dict:
     """JSON Schema (draft 7) of a case file, without the nulls that stand for absent keys
     (TOML has no null)."""
     schema = Case.model_json_schema(by_alias=True)
+    schema["properties"].pop("base_dir", None)      # set by polypore, not a case-file key
     schema["$schema"] = "http://json-schema.org/draft-07/schema#"   # what Taplo and most editors read
     schema["title"] = "polypore case file"
     return _without_null(schema)

@@ -41,6 +41,9 @@ SOLVER_KEYS = {"mechanics": {"linear", "tolerance", "increment_tolerance", "max_
                "flow": {"linear", "linear_tolerance", "petsc"}}
 SOLVER_KEYS["poromechanics"] = SOLVER_KEYS["mechanics"] | SOLVER_KEYS["flow"]
 _NAME = re.compile(r"[\w.-]+")
+# output times of one run: each writes a set of VTU files and a summary row, so 100,000 of them
+# are hours of writing and gigabytes of files (issue 25), never a considered choice
+MAX_OUTPUT_TIMES = 10_000
 
 
 def physics(given: set, model: str | None) -> str:
@@ -88,6 +91,10 @@ class Time(Table):
         if self.output_times is not None:
             if "output_every" in self.given():
                 fail("give output_every or output_times, not both", key="output_times")
+            n = len(set(self.output_times))
+            if n > MAX_OUTPUT_TIMES:
+                fail(f"{n:,} distinct output times; allowed: at most {MAX_OUTPUT_TIMES:,} (each writes the "
+                     "run's VTU files and a summary row)", key="output_times")
             bad = [v for v in self.output_times if not self.start < v <= self.end]
             if bad:
                 fail(f"{bad[0]!r} lies outside the run ({self.start!r}, {self.end!r}] s", key="output_times")
@@ -236,8 +243,8 @@ class Case(Table):
         None, description="one line on what the case is")
     model: choice(*MODELS) | None = Field(None, description="the physics; default: poromechanics with both "
                                           "mechanics and [flow] tables, flow with [flow] only, else mechanics")
-    base_dir: Text | None = Field(None, description="set by polypore: the folder of the case file (relative "
-                                  "mesh files are found there)")
+    base_dir: Text | None = Field(None, description="not a case-file key: set by polypore (load_case) or an API "
+                                  "caller to the folder of the case file, where relative mesh files are found")
     parameters: Annotated[dict, PlainValidator(_parameters), WithJsonSchema(
         {"type": "object", "additionalProperties": {"type": "number"}})] = Field(
         default_factory=dict, description="named numbers usable in every expression")

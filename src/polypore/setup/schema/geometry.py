@@ -235,7 +235,28 @@ class Fracture(Table):
             for key in ("centre", "radius", "normal"):
                 if key not in given:
                     fail(f"is required for a regular polygon (with {', '.join(sorted(polygon))})", key=key)
+        if self.vertices is not None:
+            self._simple()
         return self
+
+    def _simple(self):
+        # a fracture crossing itself was found only inside Newton (issue 25): refuse it here
+        from ...mesh.fractures import self_intersection
+
+        closed = len(self.vertices[0]) == 3
+        pair = self_intersection(self.vertices, closed)
+        if pair is None:
+            return
+        k = len(self.vertices)
+        i, j = pair
+        what = "polygon" if closed else "polyline"
+
+        def edge(e):
+            return f"the edge from vertex {e + 1} to vertex {(e + 1) % k + 1}"
+        fail(f"the {what} intersects itself: {edge(i)} and {edge(j)} (vertices numbered from 1) "
+             f"{'fold back onto each other' if j == i + 1 or (closed and i == 0 and j == k - 1) else 'cross or touch'}"
+             f"; a fracture must be a simple {what} (split it into fractures that meet, or reorder its "
+             "vertices)", key="vertices")
 
 
 class Region(Table):
