@@ -144,7 +144,10 @@ def self_intersection(vertices, closed: bool, tol: float = 1e-9):
         return None
     if V.shape[1] == 3:
         c = V.mean(0)
-        P = (V - c) @ np.linalg.svd(V - c)[2][:2].T
+        _, sv, vt = np.linalg.svd(V - c)
+        if sv[1] <= 1e-9 * max(float(np.ptp(V, axis=0).max()), 1e-300):
+            return None                  # collinear: no plane to project on (its own message)
+        P = (V - c) @ vt[:2].T
     else:
         P = V
     A = P if closed else P[:-1]
