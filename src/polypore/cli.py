@@ -39,6 +39,29 @@ def _setup_logging(quiet: bool) -> None:
     log.addHandler(handler)
 
 
+@contextmanager
+def _live_status():
+    """The live status line (docs/live_progress.md) while the block runs: on rank 0 only, not with
+    --quiet nor with POLYPORE_LIVE=0; POLYPORE_LIVE_INTERVAL sets the seconds between the plain
+    lines written when stderr is not a terminal (default 30). The line is cleared at the end of the
+    block and before every log record."""
+    import os
+
+    if not _is_root() or not log.isEnabledFor(logging.INFO) or os.environ.get("POLYPORE_LIVE", "1") == "0":
+        yield
+        return
+    from .io.progress import LiveStatus
+
+    try:
+        interval = float(os.environ.get("POLYPORE_LIVE_INTERVAL", "30"))
+    except ValueError:
+        interval = 30.0
+    with LiveStatus(sys.stderr, interval=interval) as status:
+        for handler in log.handlers:
+            status.guard(handler)
+        yield
+
+
 class Terminated(BaseException):
     """Raised by the SIGTERM handler: a BaseException, like KeyboardInterrupt, so that no
     ``except Exception`` on the way swallows it and the run directory records the failure."""
@@ -119,6 +142,9 @@ def _acknowledge(signals: set):
                 if sig in signals and sig not in told:
                     told.add(sig)
                     try:
+                        from .io.progress import erase_live_line
+
+                        erase_live_line()
                         sys.stderr.write(f"polypore: {signal.Signals(sig).name} received; stopping after the "
                                          "current solve...\n")
                         sys.stderr.flush()
@@ -211,9 +237,10 @@ def cmd_mesh(args) -> int:
     _check_limits(args, case, max_steps=math.inf)   # the mesh only: no time loop
     with _output(args, case.name) as (out, stage):
         t0 = time.perf_counter()
-        fm = build_fractured_mesh(case)
-        check_case_on_mesh(case, fm)        # what `polypore run` would refuse is refused here too
-        report = write_mesh_outputs(stage, case, fm, seconds=time.perf_counter() - t0)
+        with _live_status():
+            fm = build_fractured_mesh(case)
+            check_case_on_mesh(case, fm)        # what `polypore run` would refuse is refused here too
+            report = write_mesh_outputs(stage, case, fm, seconds=time.perf_counter() - t0)
     _print_mesh_report(report)
     print(f"wrote {out}/: mesh.vtu, fractures.vtu, mesh.json, case.toml")
     return 0
@@ -226,7 +253,8 @@ def cmd_run(args) -> int:
     case = load_case(args.case, args.set or [])
     _check_limits(args, case)
     with _output(args, case.name) as (out, stage):
-        summary = run_case(case, stage)
+        with _live_status():
+            summary = run_case(case, stage)
     peaks = _rank_peaks()
     if not _is_root():
         return 0
@@ -314,7 +342,8 @@ def cmd_convergence(args) -> int:
         raise InputError("--levels", f"need at least 2 levels to fit a rate, got {args.levels}")
     _check_limits(args, case, levels=args.levels)
     with _output(args, f"{case.name}-convergence") as (out, stage):
-        result = run_convergence(case, args.levels, stage)
+        with _live_status():
+            result = run_convergence(case, args.levels, stage)
     print(format_table(result))
     print(f"wrote {out}/: convergence.csv, convergence.json, convergence.png")
     return 0

@@ -23,6 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from .. import __version__
+from ..core import live
 from ..core.errors import InputError, RunError
 from ..io.atomic import atomic_write_text
 from ..io.legend import POROMECHANICS_ARRAYS, write_legend
@@ -53,6 +54,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
     faults = corner_point_faults(case, fm)
     g = mesh.geometry
     schedule = fs.schedule
+    live.update(steps=len(schedule.times()) - 1, unit="step")   # the live line's run estimate, from the start
     s_arc = arc_length(fm)
     t0 = time.perf_counter()
     ref = model.reference

@@ -49,6 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..core import live
 from ..core.errors import InputError
 from ..core.memory import trim_heap
 from ..mesh import FracturedMesh, FractureSpec
@@ -180,10 +181,11 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
     from ..solvers.distributed import context
 
     ctx = context()
-    if ctx is not None and ctx.size > 1:
-        fm = ctx.bcast_call(_build_fractured_mesh, case)
-    else:
-        fm = _build_fractured_mesh(case)
+    with live.phase("meshing"):
+        if ctx is not None and ctx.size > 1:
+            fm = ctx.bcast_call(_build_fractured_mesh, case)
+        else:
+            fm = _build_fractured_mesh(case)
     trim_heap()                 # the mesh generator's and the broadcast's temporaries (core/memory.py)
     return fm
 

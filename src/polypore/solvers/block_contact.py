@@ -46,6 +46,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..core import live
 from ..core.errors import RunError
 from .linear import repeatable_random
 from .timing import SPLIT
@@ -132,7 +133,7 @@ class BlockContactSolver:
         t0 = time.perf_counter()
         J = sp.csr_matrix(J)
         n_u = self.n_u
-        with SPLIT.timed("preconditioner"):
+        with SPLIT.timed("preconditioner", "block preconditioner set-up (AMG)"):
             A, Bt = J[:n_u, :n_u], J[:n_u, n_u:]
             Cu, Cl = J[n_u:, :n_u], J[n_u:, n_u:]
             Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
@@ -144,7 +145,7 @@ class BlockContactSolver:
             xc = Cinv @ (rc - Cu_s @ xu)
             return np.concatenate([xu, xc])
 
-        with SPLIT.timed("krylov"):
+        with SPLIT.timed("krylov", "GMRES"):
             x = _gmres(J, rhs, apply, self, target)
         self.seconds += time.perf_counter() - t0
         log.debug("block contact solver: %d GMRES iterations, %.2f s", self.iterations[-1], time.perf_counter() - t0)
@@ -181,6 +182,7 @@ def _gmres(J, rhs, apply, solver, target=None):
 
     def cb(_):
         its[0] += 1
+        live.krylov_iteration()
 
     if target is None:
         rtol, w, b = solver.rtol, None, rhs
@@ -327,7 +329,7 @@ class BlockPoroSolver:
         J = sp.csr_matrix(J)
         nu, nl = self.n_u, self.n_l
         po = nu + nl
-        with SPLIT.timed("preconditioner"):
+        with SPLIT.timed("preconditioner", "block preconditioner set-up (AMG)"):
             A, Bt, Gup = J[:nu, :nu], J[:nu, nu:po], J[:nu, po:]
             Cu, Cl = J[nu:po, :nu], J[nu:po, nu:po]
             Gpu, F = J[po:, :nu], J[po:, po:]
@@ -342,7 +344,7 @@ class BlockPoroSolver:
             xl = Cinv @ (rl - Cu_s @ xu) if nl else rl
             return np.concatenate([xu, xl, xp])
 
-        with SPLIT.timed("krylov"):
+        with SPLIT.timed("krylov", "GMRES"):
             x = _gmres(J, rhs, apply, self, target)
         self.seconds += time.perf_counter() - t0
         log.debug("block poro solver: %d GMRES iterations, %.2f s", self.iterations[-1], time.perf_counter() - t0)

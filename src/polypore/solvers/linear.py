@@ -32,6 +32,7 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..core import live
 from ..core.errors import InputError, RunError
 from ..core.memory import trim_heap
 from .timing import SPLIT
@@ -167,7 +168,7 @@ class LinearSolver:
         elif self.backend == "pardiso":
             import pypardiso
 
-            with SPLIT.timed("preconditioner"):           # factorisation and solve in one call
+            with SPLIT.timed("preconditioner", "factorising and solving (PARDISO)"):   # in one call
                 x = pypardiso.spsolve(A, b)
         elif self.backend == "amg":
             x = self._amg(A, b)
@@ -187,11 +188,11 @@ class LinearSolver:
         try:
             # a symmetric pattern orders better with minimum degree on A^T + A (4x less fill on
             # the 3D HFV face systems than COLAMD)
-            with SPLIT.timed("preconditioner"):           # the factorisation
+            with SPLIT.timed("preconditioner", "factorising (SuperLU)"):
                 lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A" if self.symmetric else "COLAMD")
         except RuntimeError as exc:
             raise RunError(f"the linear system is singular ({exc}): check the Dirichlet conditions and the data") from None
-        with SPLIT.timed("krylov"):                       # the triangular solves
+        with SPLIT.timed("krylov", "triangular solves"):
             return lu.solve(b)
 
     def _petsc(self, A, b):
@@ -222,7 +223,7 @@ class LinearSolver:
         import pyamg
 
         B = self.near_nullspace
-        with repeatable_random(), SPLIT.timed("preconditioner"):
+        with repeatable_random(), SPLIT.timed("preconditioner", "AMG set-up"):
             ml = pyamg.smoothed_aggregation_solver(A, B=B, strength="evolution" if B is not None else "symmetric",
                                                    max_coarse=500)
         M = ml.aspreconditioner(cycle="V")
@@ -230,6 +231,7 @@ class LinearSolver:
 
         def cb(_):
             its[0] += 1
+            live.krylov_iteration()
 
         cols = b.reshape(len(b), -1)
         out = np.empty_like(cols)

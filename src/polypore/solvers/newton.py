@@ -37,6 +37,7 @@ from typing import Callable
 
 import numpy as np
 
+from ..core import live
 from ..core.errors import RunError
 from ..core.memory import trim_heap
 from .linear import LinearSolver
@@ -219,6 +220,22 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
     """
     if options.forcing not in FORCING:
         raise ValueError(f"NewtonOptions.forcing must be one of {FORCING}, got {options.forcing!r}")
+    live.update(newton_start=options.label, unknowns=int(np.size(x0)))
+    try:
+        return _newton(linearise, x0, solver, increment_norm, options, verbose, first_tight)
+    finally:
+        live.update(newton_end=True)
+
+
+def _krylov_total(solver) -> int | None:
+    """Krylov iterations of all the solves of ``solver`` so far (None: it does not count them)."""
+    its = getattr(solver, "iterations", None)
+    if its is None:
+        its = getattr(getattr(solver, "stats", None), "iterations", None)
+    return None if its is None else int(sum(its))
+
+
+def _newton(linearise, x0, solver, increment_norm, options, verbose, first_tight) -> NewtonResult:
     inexact = options.forcing != "fixed" and bool(getattr(solver, "takes_target", False))
     prev_fnorm = prev_eta = None
     x = np.array(x0, float)
@@ -242,6 +259,7 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
                                           or bool(history) and history[-1]["residual"] <= options.tol)
         row = {"iteration": it, "residual": rnorm, "increment": inc, "step": step, **lin.block_norms, **lin.counts}
         history.append(row)
+        live.update(newton=it, residual=rnorm)
         if verbose:
             states = " ".join(f"{k} {v}" for k, v in lin.counts.items())
             blocks = " ".join(f"{k} {v:.2e}" for k, v in lin.block_norms.items())
@@ -267,6 +285,7 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
         prev_active = None if lin.active_set is None else lin.active_set.copy()
         trim_heap()                 # the assembly's temporaries, before the solver's allocations
         t0 = time.perf_counter()
+        k0 = _krylov_total(solver) if live.current() is not None else None
         with SPLIT.timed("linear"):
             if inexact and lin.row_scale is not None:
                 fnorm = float(np.linalg.norm(lin.row_scale * lin.residual))
@@ -277,6 +296,8 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
             else:
                 dx = solver.solve(lin.jacobian, -lin.residual)
         t_lin += time.perf_counter() - t0
+        if k0 is not None:
+            live.update(krylov_solved=_krylov_total(solver) - k0)
         # the Jacobian is not needed any more: its memory (on N ranks this rank's rows) and the
         # solve's temporaries go back to the system before the line search assembles the next one
         lin.jacobian = None

@@ -17,6 +17,8 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 
+from ..core import live
+
 CATEGORIES = ("assembly", "linear", "preconditioner", "krylov")
 # The categories keep their names in summary.json (seconds_preconditioner, seconds_krylov), but a
 # direct solver has no preconditioner and no Krylov iterations: printed, the parts are named by
@@ -36,6 +38,10 @@ def split_labels(backend: str | None) -> dict:
     return {"assembly": "assembly", "preconditioner": "preconditioner set-up", "krylov": "Krylov iterations",
             "other": "other"}
 
+PHASES = {"assembly": "assembling", "linear": "linear solve", "preconditioner": "preconditioner set-up",
+          "krylov": "Krylov iterations"}
+"""The live status's name of each category (:mod:`polypore.core.live`), unless a block names its own."""
+
 
 class TimeSplit:
     """Wall and CPU seconds per category (:data:`CATEGORIES`), summed over the calls."""
@@ -52,11 +58,13 @@ class TimeSplit:
         self.cpu[category] += cpu
 
     @contextmanager
-    def timed(self, category: str):
-        """Adds the wall and CPU seconds of the ``with`` block to ``category``."""
+    def timed(self, category: str, phase: str | None = None):
+        """Adds the wall and CPU seconds of the ``with`` block to ``category``; the block is also
+        the live status's phase ``phase`` (default: :data:`PHASES` of the category)."""
         t0, c0 = time.perf_counter(), time.process_time()
         try:
-            yield
+            with live.phase(phase or PHASES[category]):
+                yield
         finally:
             self.add(category, time.perf_counter() - t0, time.process_time() - c0)
 
