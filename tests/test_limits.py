@@ -127,3 +127,12 @@ def test_a_tilted_cornerpoint_grid_is_estimated_by_its_cells():
     spec = load_case("cornerpoint-injection", ["mesh.pillar_angle=60", "mesh.pinchout=[2]"]).spec
     est = check_limits(spec)
     assert est.cells == 20 * 10 * 8 and est.field == "mesh.cells" and est.unknowns > est.cells
+
+
+def test_a_fracture_reaching_far_outside_is_estimated_without_allocating_its_front():
+    # a fuzzed vertex at x = 1e9 m: the front-tube estimate counted the generator's layers by making
+    # them (1e10 positions, the fuzz run was killed for memory); counted now, and refused
+    from polypore.mesh.generators.fronts import graded_count, graded_positions
+
+    assert graded_count(1.0, 0.5, 0.15, 0.6, 0.04) == len(graded_positions(1.0, 0.5, 0.15, 0.6, 0.04)) - 1
+    assert graded_count(1e9, 0.5, 0.15, 0.6, 0.04) > 1e8          # counted in microseconds, nothing made

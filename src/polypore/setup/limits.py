@@ -17,7 +17,7 @@ import os
 from dataclasses import dataclass
 
 from ..core.errors import InputError
-from ..mesh.generators.fronts import RING_RADIUS, SECTORS, graded_positions, ring_radii
+from ..mesh.generators.fronts import RING_RADIUS, SECTORS, graded_count, ring_radii
 
 FLAG = "--no-limits"
 MAX_STEPS = 1_000_000            # time steps of one run
@@ -114,7 +114,7 @@ def _front_tubes(edges, h: float, tip_size: float, gamma: float) -> float:
     """Cells of the anisotropic crack-front tubes (``mesh.front = "anisotropic"``,
     mesh/generators/fronts.py) along the fracture edges of lengths ``edges``: a ring of K squares
     of SECTORS points (2 SECTORS K triangles) swept in the layers the generator places along each
-    edge (:func:`~polypore.mesh.generators.fronts.graded_positions`, graded towards the corners
+    edge (:func:`~polypore.mesh.generators.fronts.graded_count`, graded towards the corners
     and floored at tip_size: at tip_size = 1e-7 m over 1500 layers per edge, where a spacing of
     ``h`` would say 2), each prism split into 3 tetrahedra. The slab's core and the fill's first
     cells next to the tubes add 80 % (calibrated on cube-slip-3d's meshes: the whole estimate
@@ -122,7 +122,8 @@ def _front_tubes(edges, h: float, tip_size: float, gamma: float) -> float:
     rho = RING_RADIUS * h
     tip = min(tip_size, rho)
     K = len(ring_radii(rho, tip, gamma))
-    layers = sum(len(graded_positions(e, h, rho, gamma, tip)) - 1 for e in edges if e > 0)
+    # counted, not made: a fracture edge of 1e9 m would otherwise allocate its 1e10 layers here
+    layers = sum(graded_count(e, h, rho, gamma, tip) for e in edges if e > 0)
     return 1.8 * 3 * 2 * SECTORS * K * layers
 
 

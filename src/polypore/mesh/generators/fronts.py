@@ -76,13 +76,23 @@ def _law(d, h_far, radius, gamma, h_min):
     return np.clip(h_far * (d / radius) ** gamma, h_min, h_far)
 
 
-def graded_positions(length, h_far, radius, gamma, h_min):
-    """Node positions in [0, length] with spacing h(distance to the nearer end) (see :func:`_law`):
-    the number of intervals is ⌈∫ dx/h⌉ (at least 1), the nodes equidistribute ∫ dx/h."""
+def _graded_integral(length, h_far, radius, gamma, h_min):
+    """(x (4001,), ∫_0^x dx/h) on a fixed sampling of [0, length], and the number of intervals."""
     x = np.linspace(0.0, length, 4001)
     g = 1.0 / _law(np.minimum(x, length - x), h_far, radius, gamma, h_min)
     integral = np.concatenate([[0.0], np.cumsum(0.5 * (g[1:] + g[:-1]) * np.diff(x))])
-    n = max(1, int(np.ceil(integral[-1] - 1e-9)))
+    return x, integral, max(1, int(np.ceil(min(integral[-1], 1e15) - 1e-9)))
+
+
+def graded_count(length, h_far, radius, gamma, h_min) -> int:
+    """The number of intervals :func:`graded_positions` makes, without making them (size guards)."""
+    return _graded_integral(length, h_far, radius, gamma, h_min)[2]
+
+
+def graded_positions(length, h_far, radius, gamma, h_min):
+    """Node positions in [0, length] with spacing h(distance to the nearer end) (see :func:`_law`):
+    the number of intervals is ⌈∫ dx/h⌉ (at least 1), the nodes equidistribute ∫ dx/h."""
+    x, integral, n = _graded_integral(length, h_far, radius, gamma, h_min)
     t = np.interp(np.linspace(0.0, integral[-1], n + 1), integral, x)
     t[0], t[-1] = 0.0, length
     return t
