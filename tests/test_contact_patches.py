@@ -113,3 +113,5 @@ def test_slivered_cornerpoint_run_keeps_the_energy_identity(tmp_path):
     assert s["energy_check"]["violations"] == [] and s["energy_check"]["steps_checked"] == 2
     mp = s["mesh"]["multiplier_patches"]
     assert mp["faces_in_shared_patches"] > 0 and mp["smallest_patch_ratio"] >= 0.2
+    # the state counts of the log and summary are fracture faces, not patches
+    assert all(st["open"] + st["stick"] + st["slip"] == s["mesh"]["fracture_faces"] for st in s["steps"])

@@ -526,6 +526,11 @@ class ContactMechanics:
         that are their own patch)."""
         return face_values if self.patches.identity else self.patches.mean @ face_values
 
+    def state_counts(self, state: np.ndarray) -> dict:
+        """{"open", "stick", "slip"}: fracture faces in each state, from the patch states (n_c,)."""
+        c = np.bincount(self.face_values(np.asarray(state, np.int64)), minlength=3)
+        return {"open": int(c[OPEN]), "stick": int(c[STICK]), "slip": int(c[SLIP])}
+
     def face_values(self, patch_values: np.ndarray) -> np.ndarray:
         """(n_ff, ...) the value of each face's patch."""
         return patch_values if self.patches.identity else self.patches.expand(patch_values)
@@ -557,8 +562,7 @@ class ContactMechanics:
         norms = {"equilibrium": float(np.linalg.norm(Ru_f) / su)}
         if nf:
             norms["contact"] = float(np.linalg.norm(C) / sc)
-        counts = {"open": int(np.sum(state == OPEN)), "stick": int(np.sum(state == STICK)),
-                  "slip": int(np.sum(state == SLIP))} if nf else {}
+        counts = self.state_counts(state) if nf else {}
         # the residual rows are N: equilibrium, and contact C_σ β_σ; dividing by the block scales
         # gives the weights whose 2-norm is Newton's measure (iterative solves stop in it)
         w = row_weights(np.full(Ru_f.size, su), np.repeat(b * sc, d))

@@ -672,8 +672,7 @@ class Poromechanics:
             sc = max(np.linalg.norm(mech.c_area[:, None] * qc), np.linalg.norm((mech.c_area / b)[:, None] * lam),
                      1e-300)
             norms["contact"] = float(np.linalg.norm(C) / sc)
-        counts = {"open": int(np.sum(state == OPEN)), "stick": int(np.sum(state == STICK)),
-                  "slip": int(np.sum(state == SLIP))} if nf else {}
+        counts = mech.state_counts(state) if nf else {}
         res = np.concatenate([Ru[free], (C * b[:, None]).ravel(), -s[ff] * Rf[ff]])
         # row weights of Newton's measure (solvers/newton.py): a flow row −s_i Rf_i of kind k
         # counts as Rf_i/√den_k, the kind's norm above (kinds summed in the 2-norm, not maxed)
