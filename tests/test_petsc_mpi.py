@@ -92,14 +92,14 @@ ASSEMBLY = textwrap.dedent("""
     mech = model.mech
     F, udir = mech.load_vector(st.time), mech.dirichlet_vector(st.time)
     xm = x0[:mech.free.size + model.n_ff * model.dim]
-    clin = mech.linearise(xm, F, udir, (mech.Jv @ st.u.ravel()).reshape(-1, model.dim))
+    clin = mech.linearise(xm, F, udir, (mech.Jcv @ st.u.ravel()).reshape(-1, model.dim))
     dist.deactivate()
     serial = poro_setup(load_case("dfm-3d", sets + ["solver.linear=superlu"]), fm)[0]   # same mesh
     serial.u_ref = model.u_ref
     ctx_s, x0_s = serial.step_context(st, 2.0, st.time + 2.0)
     lin_s = serial._linearise(x0_s, ctx_s)
     smech = serial.mech
-    clin_s = smech.linearise(xm, F, udir, (smech.Jv @ st.u.ravel()).reshape(-1, model.dim))
+    clin_s = smech.linearise(xm, F, udir, (smech.Jcv @ st.u.ravel()).reshape(-1, model.dim))
 
     def same_rows(owned, full):
         ref = owned.layout.rows(full)

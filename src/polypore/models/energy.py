@@ -213,8 +213,8 @@ def step_energy(model, old, new) -> EnergyTerms:
     # product with p_f is counted as work done on the fluid: W_dil = −Σ|σ| tan ψ p_f Δ|[[u − u⁰]]_τ|
     dil_w = 0.0
     if nf and np.any(model.tan_psi > 0):
-        rel1 = model._tangential_slip((mech.Jv @ u).reshape(nf, d))[0]
-        rel0 = model._tangential_slip((mech.Jv @ u0).reshape(nf, d))[0]
+        rel1 = model._tangential_slip(model.jumps(new.u))[0]
+        rel0 = model._tangential_slip(model.jumps(old.u))[0]
         dil = mech.face_area * model.tan_psi * (rel1 - rel0) * pf
         dil_w = -float(dil.sum())
         scale += float(np.abs(dil).sum())

@@ -254,12 +254,10 @@ class ContactMechanics:
         if P.identity:
             self.jump_scalar, self.normal = self.ops.jump, net.normal
         else:
-            E = sp.csr_array((np.ones(self.n_ff), (np.arange(self.n_ff), P.face_patch)), shape=(self.n_ff, P.n))
-            self.jump_scalar, self.normal = sp.csr_array(E @ self.c_jump), P.expand(P.normal)
-        # jump as a vector operator (n_ff*d, n_dofs) and the equilibrium coupling B = |σ| [[·]], per
-        # face and per patch (the same coupling: Bᵀ λ_face = B_cᵀ λ_P)
-        self.Jv, self.Bv = _vector_jump(self.jump_scalar, self.face_area, self.n_dofs, d)
-        self.Jcv, self.Bcv = (self.Jv, self.Bv) if P.identity else _vector_jump(self.c_jump, P.area, self.n_dofs, d)
+            self.jump_scalar, self.normal = self.c_jump[P.face_patch], P.expand(P.normal)
+        # the patch jump as a vector operator (n_c*d, n_dofs) and the equilibrium coupling
+        # B_c = |P| [[·]]_P (= Σ_σ |σ| [[·]]_σ with each face's patch jump: B_cᵀ λ_P = Bᵀ λ_face)
+        self.Jcv, self.Bcv = _vector_jump(self.c_jump, P.area, self.n_dofs, d)
         J = self.c_jump.tocoo()
         self._face_means = {}          # traction boundaries: face-mean operators (order 2: face quadratures)
         self._setup_dirichlet()

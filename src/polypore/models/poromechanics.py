@@ -621,7 +621,7 @@ class Poromechanics:
 
     def _linearise(self, x, ctx) -> Linearisation:
         mech, d, nf = self.mech, self.dim, self.n_ff
-        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old) = ctx
+        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old), rel_old = ctx
         u, lam, p = self._split(x, udir, p_dir, s)
         qc = (mech.Jcv @ u).reshape(mech.n_c, d)                     # patch-mean jumps (contact rows)
         C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, qc, qc - q_old, mech.c_normal, mech.c_area)
@@ -637,10 +637,10 @@ class Poromechanics:
         terms = abs_A @ np.abs(p) + self._abs_GT @ np.abs(u) + terms_old        # Σ |terms| of each flow row
         dil_vals = np.zeros(0)
         if nf and np.any(self.tan_psi > 0):
-            # dilatancy acts per face, on the faces' own jumps
-            rel, that = self._tangential_slip((mech.Jv @ u).reshape(nf, d))
+            # dilatancy acts per face, on the faces' (patch) jumps; the old slip is the step's
+            rel, that = self._tangential_slip(self.jumps(u.reshape(-1, d)))
             w = mech.face_area * self.tan_psi
-            Rf[self.dofs.frac] += w * (rel - self._tangential_slip((mech.Jv @ u_old).reshape(nf, d))[0])
+            Rf[self.dofs.frac] += w * (rel - rel_old)
             terms[self.dofs.frac] += w * rel
             jrow_, jval_, dkeep = self._dil
             dil = (s[self.dofs.frac[jrow_]] * w[jrow_] * jval_)[:, None] * that[jrow_]   # (nnz, d)
@@ -706,9 +706,10 @@ class Poromechanics:
         # ε |J| |x − x^{n−1}|, so they belong to the size of each row
         abs_A = abs(A_dt)
         terms_old = abs_A @ np.abs(old.p) + np.abs(r_dt) + self._abs_GT @ np.abs(u_old)
+        rel_old = None                          # |[[u^{n−1} − u⁰]]_τ|_ε per face, with dilatancy only
         if self.n_ff and np.any(self.tan_psi > 0):
-            q_face = (mech.Jv @ u_old).reshape(self.n_ff, d)
-            terms_old[self.dofs.frac] += mech.face_area * self.tan_psi * self._tangential_slip(q_face)[0]
+            rel_old = self._tangential_slip(self.jumps(old.u))[0]
+            terms_old[self.dofs.frac] += mech.face_area * self.tan_psi * rel_old
         # the Jacobian's data without the contact blocks (2, 3, 7, added per iteration by _linearise):
         # the fixed blocks and the step's coupling and flow blocks; no block of 2–3 shares an entry
         # with 4–6 (contact rows against displacement and pressure rows), so adding 4–6 before them
@@ -716,7 +717,7 @@ class Poromechanics:
         pat, cs = self.pattern, self._coupling_sign
         j_step = pat.add(pat.add(pat.add(self._j_fixed.copy(), 4, -cs * g_vals[0]), 5, -g_vals[1]), 6, -af_vals)
         del g_vals, af_vals
-        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old))
+        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old), rel_old)
         x0 = np.concatenate([u_old[mech.free], (mech.patch_values(old.lam) / mech.law.beta[:, None]).ravel(),
                              old.p[self.flow_free] / sf])
         return ctx, x0
