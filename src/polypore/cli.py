@@ -103,7 +103,7 @@ def _signals_raise():
 
 @contextmanager
 def _acknowledge(signals: set):
-    """Print "<SIG> received; stopping after the current solve..." as soon as one of ``signals``
+    """Print "<SIG> received; stopping..." as soon as one of ``signals``
     arrives, even while the main thread is inside a long native call (a sparse factorisation).
 
     Python runs its handler only when the main thread is back in bytecode, which can be minutes
@@ -145,8 +145,7 @@ def _acknowledge(signals: set):
                         from .io.progress import erase_live_line
 
                         erase_live_line()
-                        sys.stderr.write(f"polypore: {signal.Signals(sig).name} received; stopping after the "
-                                         "current solve...\n")
+                        sys.stderr.write(f"polypore: {signal.Signals(sig).name} received; stopping...\n")
                         sys.stderr.flush()
                     except (OSError, ValueError):
                         pass
@@ -524,7 +523,22 @@ def main(argv=None) -> int:
         name = getattr(exc, "signal", "SIGINT")
         what = "interrupted by the user (SIGINT)" if name == "SIGINT" else str(exc)
         print(f"polypore: {what}" + (f"; wrote {where}" if where else ""), file=sys.stderr)
-        return 128 + signal.Signals[name].value
+        status = 128 + signal.Signals[name].value
+        from .core.interruptible import abandoned
+
+        if abandoned():
+            # a factorisation is still running on its thread: the interpreter's shutdown would
+            # free what it uses and crash it; everything the run had to record is written
+            import os
+
+            logging.shutdown()
+            for stream in (sys.stdout, sys.stderr):
+                try:
+                    stream.flush()
+                except (OSError, ValueError):
+                    pass
+            os._exit(status)
+        return status
 
 
 if __name__ == "__main__":  # pragma: no cover

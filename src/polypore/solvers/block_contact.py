@@ -48,6 +48,7 @@ import scipy.sparse.linalg as spla
 
 from ..core import live
 from ..core.errors import RunError
+from ..core.interruptible import interruptible
 from .linear import repeatable_random
 from .timing import SPLIT
 
@@ -275,7 +276,7 @@ class _PressureSolve:
                 # this, peak memory grew to 11 GB over C5's 50 steps at 46k cells)
                 self._ps.free_memory(everything=True)
             ps = self._ps = pypardiso.PyPardisoSolver()
-            ps.factorize(Sp)
+            interruptible(ps.factorize, Sp)     # a signal stops the run mid-factorisation
             self.apply = lambda r: ps.solve(Sp, np.asarray(r, float))
         else:
             sign = -1.0 if np.mean(Sp.diagonal()) < 0 else 1.0   # AMG wants a positive definite operator

@@ -33,6 +33,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..core import live
+from ..core.interruptible import interruptible
 from ..core.errors import InputError, RunError
 from ..core.memory import trim_heap
 from .timing import SPLIT
@@ -169,7 +170,7 @@ class LinearSolver:
             import pypardiso
 
             with SPLIT.timed("preconditioner", "factorising and solving (PARDISO)"):   # in one call
-                x = pypardiso.spsolve(A, b)
+                x = interruptible(pypardiso.spsolve, A, b)
         elif self.backend == "amg":
             x = self._amg(A, b)
         elif self.backend == "petsc":
@@ -189,11 +190,11 @@ class LinearSolver:
             # a symmetric pattern orders better with minimum degree on A^T + A (4x less fill on
             # the 3D HFV face systems than COLAMD)
             with SPLIT.timed("preconditioner", "factorising (SuperLU)"):
-                lu = spla.splu(A.tocsc(), permc_spec="MMD_AT_PLUS_A" if self.symmetric else "COLAMD")
+                lu = interruptible(spla.splu, A.tocsc(), permc_spec="MMD_AT_PLUS_A" if self.symmetric else "COLAMD")
         except RuntimeError as exc:
             raise RunError(f"the linear system is singular ({exc}): check the Dirichlet conditions and the data") from None
         with SPLIT.timed("krylov", "triangular solves"):
-            return lu.solve(b)
+            return interruptible(lu.solve, b)
 
     def _petsc(self, A, b):
         from .distributed import OwnedRows, layout_for
