@@ -59,6 +59,13 @@ def test_results_copy_of_the_case_finds_the_shipped_grid(tmp_path):
     assert main(["mesh", str(tmp_path / "m" / "case.toml"), "--out", str(tmp_path / "m2")]) == 0
     report = json.loads((tmp_path / "m2" / "mesh.json").read_text())
     assert report["mesh"]["cells"] == 7157
+    # the per-fault report of summary.json, also without a run (issue 25): names, faces and which
+    # [[fractures]] entry uses each fault
+    faults = report["faults"]
+    assert sorted(faults) == [f"fault_{i}" for i in range(1, 6)]
+    used = {f["fracture"]: f["faces"] for f in faults.values() if f["fracture"]}
+    assert used == {"west": 147, "north": 132}
+    assert sum(used.values()) == report["mesh"]["fracture_faces"] == 279
 
 
 @pytest.mark.skipif(not have_pardiso(), reason="PARDISO not installed: SuperLU takes minutes per step here")

@@ -228,6 +228,7 @@ def cmd_cases(args) -> int:
 
 def cmd_mesh(args) -> int:
     from .io.mesh_output import write_mesh_outputs
+    from .runs.common import corner_point_faults
     from .setup.casefile import load_case
     from .setup.checks import check_case_on_mesh
     from .setup.meshing import build_fractured_mesh
@@ -239,7 +240,9 @@ def cmd_mesh(args) -> int:
         with _live_status():
             fm = build_fractured_mesh(case)
             check_case_on_mesh(case, fm)        # what `polypore run` would refuse is refused here too
-            report = write_mesh_outputs(stage, case, fm, seconds=time.perf_counter() - t0)
+            # the faults of a corner-point grid, logged as a table and kept in mesh.json as in summary.json
+            faults = corner_point_faults(case, fm)
+            report = write_mesh_outputs(stage, case, fm, seconds=time.perf_counter() - t0, faults=faults)
     _print_mesh_report(report)
     print(f"wrote {out}/: mesh.vtu, fractures.vtu, mesh.json, case.toml")
     return 0

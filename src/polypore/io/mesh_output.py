@@ -33,8 +33,11 @@ def mesh_report(case_name: str, fm: FracturedMesh, seconds: float | None = None)
     return report
 
 
-def write_mesh_outputs(out: Path, case, fm: FracturedMesh, seconds: float | None = None) -> dict:
-    """Write the mesh files of ``polypore mesh`` into ``out``; mesh.json last (it marks completion)."""
+def write_mesh_outputs(out: Path, case, fm: FracturedMesh, seconds: float | None = None,
+                       faults: dict | None = None) -> dict:
+    """Write the mesh files of ``polypore mesh`` into ``out``; mesh.json last (it marks completion).
+    ``faults``: the per-fault report of a corner-point grid (summary.json's ``faults``), kept
+    under the same key in mesh.json."""
     mesh = fm.mesh
     g = mesh.geometry
     write_bulk_vtu(out / "mesh.vtu", mesh,
@@ -45,5 +48,7 @@ def write_mesh_outputs(out: Path, case, fm: FracturedMesh, seconds: float | None
     write_fracture_vtu(out / "fractures.vtu", fm, cell_data={"area": g.face_area[net.faces]})
     atomic_write_text(out / "case.toml", case.to_toml())
     report = mesh_report(case.name, fm, seconds)
+    if faults is not None:
+        report["faults"] = faults
     atomic_write_text(out / "mesh.json", json.dumps(report, indent=2))
     return report
