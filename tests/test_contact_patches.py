@@ -115,3 +115,21 @@ def test_slivered_cornerpoint_run_keeps_the_energy_identity(tmp_path):
     assert mp["faces_in_shared_patches"] > 0 and mp["smallest_patch_ratio"] >= 0.2
     # the state counts of the log and summary are fracture faces, not patches
     assert all(st["open"] + st["stick"] + st["slip"] == s["mesh"]["fracture_faces"] for st in s["steps"])
+
+
+def test_thickness_weight_is_the_diameter_on_regular_cells_and_softer_on_flat_ones():
+    """mechanics.nodal_stabilisation = "thickness": h_K^{d−2} min(1, 4 t_K/h_K). Unchanged on
+    shape-regular cells (cubes, tetrahedra of a gmsh mesh are close to regular), ≈ 4 t_K on flat
+    ones, and the scheme stays exact for affine fields (the stabilisation vanishes on them)."""
+    from polypore.assembly.elasticity import nodal_weight
+    from polypore.mesh.generators.cartesian import cartesian_mesh
+
+    ax = np.linspace(0, 1, 4)
+    cube = cartesian_mesh([ax, ax, ax])
+    assert np.allclose(nodal_weight(cube, "thickness"), nodal_weight(cube, "diameter"))
+    flat = cartesian_mesh([np.array([0.0, 20.0]), np.array([0.0, 20.0]), np.array([0.0, 1.0])])   # one 20 x 20 x 1 cell
+    h = np.sqrt(801.0)
+    assert np.isclose(nodal_weight(flat, "diameter")[0], h)
+    assert np.isclose(nodal_weight(flat, "thickness")[0], 4.0)          # 4 t_K, t_K = 400 / 400
+    with pytest.raises(ValueError):
+        nodal_weight(flat, "volume")

@@ -31,8 +31,35 @@ def interleave(blocks, d: int) -> sp.csr_array:
     return A.tocsr()
 
 
+FLAT = 4.0   # "thickness" weight: h_K^{d−2} min(1, FLAT t_K/h_K); 1 on every shape-regular cell
+
+
+def nodal_weight(mesh, scaling: str = "diameter") -> np.ndarray:
+    """(n_cells,) length factor of the nodal stabilisation rows (× (2μ + λ_L)).
+
+    "diameter": the scheme's h_K^{d−2}. "thickness": h_K^{d−2} min(1, 4 t_K/h_K) with the cell's
+    thickness t_K = |K| / (its largest face measure). The factor is 1 on shape-regular cells
+    (t_K/h_K = 0.27 on a regular tetrahedron, 0.58 on a cube, 0.43 on an equilateral triangle)
+    and ≈ 4 t_K on flat ones: the kernel modes of Π^K on a flat cell (in-plane twist and bending
+    of a layer) carry an energy ∝ (2μ + λ) t_K, not ∝ h_K, and the diameter weight stiffens them
+    by h_K/t_K (20 on Emerald's cells): on a reservoir grid it doubled the poroelastic shear change
+    on a fault (docs/contact_patches.md, "Flat cells").
+    """
+    g = mesh.geometry
+    d = mesh.dim
+    h = g.cell_diameter
+    if scaling == "diameter":
+        return h ** (d - 2)
+    if scaling != "thickness":
+        raise ValueError(f"nodal scaling must be 'diameter' or 'thickness', got {scaling!r}")
+    cf = mesh.cell_faces
+    largest = np.maximum.reduceat(g.face_area[cf.values], cf.offsets[:-1])
+    t = g.cell_volume / largest
+    return h ** (d - 2) * np.minimum(1.0, FLAT * t / h)
+
+
 def elasticity_matrix(ops, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 1.0,
-                      bubble_scaling: str = "face") -> sp.csr_array:
+                      bubble_scaling: str = "face", nodal_scaling: str = "diameter") -> sp.csr_array:
     """Stiffness matrix (n_dofs, n_dofs) in N/m (J/m² in 2D).
 
     Σ_q w_q [μ (∇u:∇v + ∇u:∇vᵀ) + λ div u div v] over the rows q of ``ops.D`` (quadrature points
@@ -47,6 +74,8 @@ def elasticity_matrix(ops, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 
         form, whose kernel contains the rigid motions).
     bubble_scaling : weight of a bubble's stabilisation row |v_Kσ|²: "cell", the scheme's
         h_K^{d−2} (2μ + λ_L)_K, or "face" (default), (2μ + λ_L)_K |σ|²/|K|.
+    nodal_scaling : length factor of the nodal rows, :func:`nodal_weight` ("diameter": the
+        scheme's h_K^{d−2}; "thickness": reduced on flat cells).
 
     Notes
     -----
@@ -69,7 +98,7 @@ def elasticity_matrix(ops, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 
     S = None
     if ops.stab is not None:
         g = mesh.geometry
-        wts = stab_scale * (g.cell_diameter ** (d - 2) * (2 * mu + lam))[ops.stab_cell]
+        wts = stab_scale * (nodal_weight(mesh, nodal_scaling) * (2 * mu + lam))[ops.stab_cell]
         nb = ops.space.n_bubbles
         if bubble_scaling == "face" and nb:
             # bubble rows come last (discretisation/operators.py, _stabilisation)

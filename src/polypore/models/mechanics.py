@@ -89,6 +89,8 @@ class MechanicsData:
     stabilisation : scale of the stabilisation S (1 in the scheme; unused by order 2)
     bubble_stabilisation : "face" ((2μ + λ_L) |σ|²/|K| per bubble, default) or "cell" (the
         scheme's h_K^{d−2} (2μ + λ_L)), :func:`~polypore.assembly.elasticity.elasticity_matrix`
+    nodal_stabilisation : "diameter" (the scheme's h_K^{d−2}) or "thickness" (reduced on flat
+        cells), :func:`~polypore.assembly.elasticity.nodal_weight`
     order : 1 (nodal + bubble space, scheme.md §3) or 2 (quadratic displacements on simplicial
         meshes, :mod:`polypore.discretisation.quadratic`; P0 multipliers on the face-mean jumps)
     """
@@ -107,6 +109,7 @@ class MechanicsData:
     stabilisation: float = 1.0
     order: int = 1
     bubble_stabilisation: str = "face"
+    nodal_stabilisation: str = "diameter"
 
     def __post_init__(self):
         # checked where the API builds the data: deep in the assembly a bad μ would only surface
@@ -120,6 +123,9 @@ class MechanicsData:
         if self.bubble_stabilisation not in ("face", "cell"):
             raise InputError("mechanics.bubble_stabilisation", f"must be 'face' or 'cell', got "
                              f"{self.bubble_stabilisation!r}")
+        if self.nodal_stabilisation not in ("diameter", "thickness"):
+            raise InputError("mechanics.nodal_stabilisation", f"must be 'diameter' or 'thickness', got "
+                             f"{self.nodal_stabilisation!r}")
         if isinstance(self.order, bool) or self.order not in (1, 2):
             raise InputError("mechanics.order", f"the displacement order must be 1 (nodal + bubble space) or 2 "
                              f"(quadratic, simplicial meshes), got {self.order!r}")
@@ -230,7 +236,8 @@ class ContactMechanics:
             self.ops = Operators.build(self.space)
         mu, lam = np.broadcast_to(data.mu, (mesh.n_cells,)), np.broadcast_to(data.lam, (mesh.n_cells,))
         self.mu, self.lam = mu, lam
-        self.A = elasticity_matrix(self.ops, mu, lam, data.stabilisation, data.bubble_stabilisation)
+        self.A = elasticity_matrix(self.ops, mu, lam, data.stabilisation, data.bubble_stabilisation,
+                                   data.nodal_stabilisation)
         if self.ops.stab is not None:
             # the stabilisation rows serve A only (the largest operator: one row per cell node),
             # so they are not kept for the rest of the run

@@ -253,6 +253,7 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
                          contact=ContactSpec(c.law, friction, threshold, c.beta, c.initial, c.patch_ratio),
                          two_sided=sec.bubbles == "two-sided", stabilisation=sec.stabilisation,
                          bubble_stabilisation=sec.bubble_stabilisation,
+                         nodal_stabilisation=sec.nodal_stabilisation,
                          **({"order": sec.order} if sec.order != 1 else {}))
     return MechanicsSetup(data, LinearSolver(s.linear, **s.backend_options()), newton, exact, E, nu)
 

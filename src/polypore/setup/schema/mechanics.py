@@ -156,6 +156,10 @@ class Mechanics(Table):
     bubble_stabilisation: choice("face", "cell") = Field(
         "face", description="weight of the bubbles' stabilisation: face ((2μ + λ) |σ|²/|K|, robust on flat cells "
         "and fault slivers) or cell (h_K (2μ + λ), the scheme's; docs/contact_patches.md)")
+    nodal_stabilisation: choice("diameter", "thickness") = Field(
+        "diameter", description="length in the weight of the nodal stabilisation: diameter (h_K, the scheme's) or "
+        "thickness (h_K min(1, 4 t_K/h_K), t_K = |K|/largest face: softer on flat reservoir cells; "
+        "docs/contact_patches.md)")
     body_force: ExprVectorOrExact | None = Field(None, description="body force (N/m³), per component, or "
                                                  "\"exact\"")
     matrix_pressure: Expr | None = Field(None, description="p_m (Pa) of the Biot term −b p_m I")
