@@ -11,6 +11,7 @@ with the process.
 
 from __future__ import annotations
 
+import atexit
 import queue
 import signal
 import threading
@@ -41,10 +42,22 @@ class _Worker:
         self.busy = False
         self.thread = threading.Thread(target=self._loop, name="polypore-native-calls", daemon=True)
         self.thread.start()
+        atexit.register(self._stop)
+
+    def _stop(self):
+        # an idle worker ends before the interpreter's shutdown: a daemon thread that had run
+        # SuperLU, left waiting, broke the final flush of stdout (exit status 120 after a
+        # successful run); a busy (abandoned) one is left to os._exit
+        if not self.busy and self.thread.is_alive():
+            self.jobs.put(None)
+            self.thread.join(timeout=1.0)
 
     def _loop(self):
         while True:
-            fn, args, kwargs, box, done = self.jobs.get()
+            job = self.jobs.get()
+            if job is None:
+                return
+            fn, args, kwargs, box, done = job
             try:
                 box["value"] = fn(*args, **kwargs)
             except BaseException as exc:  # re-raised in the caller, with its traceback

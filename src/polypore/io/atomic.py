@@ -51,8 +51,10 @@ MARKER = ".polypore-run.json"
 # locked by the run that owns the folder (see _locked); never deleted
 LOCK = ".polypore-lock"
 log = logging.getLogger("polypore")
-# errors of writing, not of the run: a full disk, a quota, a file system remounted read-only
-_WRITE_ERRORS = {errno.ENOSPC, errno.EFBIG, errno.EROFS} | ({errno.EDQUOT} if hasattr(errno, "EDQUOT") else set())
+# errors of writing, not of the run: a full disk, a quota, a file system remounted read-only, a failing
+# device or network file system (EIO)
+_WRITE_ERRORS = {errno.ENOSPC, errno.EFBIG, errno.EROFS, errno.EIO} | (
+    {errno.EDQUOT} if hasattr(errno, "EDQUOT") else set())
 _ACTIVE: set[Path] = set()
 
 
