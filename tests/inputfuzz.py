@@ -29,6 +29,7 @@ import os
 import re
 import shutil
 import signal
+import stat
 import sys
 import tempfile
 import time
@@ -791,7 +792,9 @@ def cli_main(argv) -> Result:
 @contextlib.contextmanager
 def fail_writes(nth: int, err: int, counter: list):
     """The ``nth`` write-side call (open for writing, os.replace, shutil.move, os.fsync, os.mkdir,
-    os.write) raises OSError(err); ``counter[0]`` counts the calls."""
+    os.write) raises OSError(err); ``counter[0]`` counts the calls. Not counted: os.mkdir of a
+    folder that exists (Path.mkdir(exist_ok=True) ignores its error) and the fsync of a folder
+    (atomic._sync_dir, best effort once the results are in place)."""
     real = {"open": builtins.open, "os.replace": os.replace, "shutil.move": shutil.move, "os.fsync": os.fsync,
             "os.mkdir": os.mkdir, "os.write": os.write}
 
@@ -803,6 +806,10 @@ def fail_writes(nth: int, err: int, counter: list):
                 mode = a[1] if len(a) > 1 else k.get("mode", "r")
                 if not any(c in mode for c in "wax+"):
                     return fn(*a, **k)
+            if name == "os.mkdir" and a and os.path.isdir(a[0]):
+                return fn(*a, **k)          # Path.mkdir(exist_ok=True) of a folder that exists: no write
+            if name == "os.fsync" and a and stat.S_ISDIR(os.fstat(a[0]).st_mode):
+                return fn(*a, **k)          # a folder's fsync after the results are in: best effort by design
             counter[0] += 1
             if counter[0] == nth:
                 raise OSError(err, os.strerror(err))

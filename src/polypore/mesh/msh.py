@@ -17,6 +17,7 @@ from types import MappingProxyType
 import numpy as np
 
 from ..core.errors import InputError, MeshError
+from ..core.paths import not_a_file
 from ..core.ragged import INDEX, frozen
 from ..core.signals import rearm_signal_handlers
 from .build import _void_keys, mesh_from_cells
@@ -117,9 +118,9 @@ def read_msh(path: str) -> tuple[Mesh, dict]:
         mixing boundary and interior faces or containing elements that are no mesh faces.
     """
     p = Path(path)
-    if not p.is_file():
-        what = "is a directory, not a mesh file" if p.is_dir() else "does not exist"
-        raise InputError("mesh.file", f"{str(p)!r} {what}")
+    what = not_a_file(p)
+    if what is not None:
+        raise InputError("mesh.file", f"{str(p)!r} {what}; mesh.file takes a Gmsh .msh file")
     with open(p, "rb") as fh:
         head = fh.read(4096).lstrip()
     # gmsh would run any other text as a .geo script (which can call the shell): refuse it

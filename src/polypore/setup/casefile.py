@@ -22,6 +22,7 @@ from typing import Any, Iterable
 import tomli_w
 
 from ..core.errors import InputError
+from ..core.paths import not_a_file
 from .schema import MODELS, Case, validate
 
 # the largest case file read (bytes): real ones are a few kB
@@ -138,8 +139,8 @@ def load_case(name_or_path: str, overrides: Iterable[str] = ()) -> CaseFile:
         source = f"builtin:{name_or_path}"
     elif path.suffix == ".toml" or _exists(path):
         if not _exists(path, file=True):
-            raise InputError("case", f"case file {str(path)!r} does not exist; give a built-in case name "
-                             f"({', '.join(builtin_names())}) or the path of a TOML case file")
+            raise InputError("case", f"case file {str(path)!r} {not_a_file(path) or 'does not exist'}; give a "
+                             f"built-in case name ({', '.join(builtin_names())}) or the path of a TOML case file")
         try:
             with open(path, "rb") as f:
                 size = os.fstat(f.fileno()).st_size
