@@ -128,19 +128,79 @@ def read_msh(path: str) -> tuple[Mesh, dict]:
         raise InputError("mesh.file", f"{str(p)!r} is not a Gmsh mesh file: it must start with $MeshFormat "
                          "(formats 2.2 and 4.1, ASCII or binary)")
     t0 = time.perf_counter()
-    with gmsh_session() as gmsh:
-        try:
-            gmsh.open(str(p))
-            data = _extract(gmsh)
-        except InputError:
-            raise
-        except Exception as exc:
-            raise InputError("mesh.file", f"cannot read {str(p)!r} as a Gmsh mesh (format 2.2 or 4.1): "
-                             f"{gmsh_last_error(gmsh, exc)}") from None
+    data = _isolated(_open, str(p))
     mesh, groups = _build(str(p), *data)
     log.info("read %s: %d cells, %d fracture group(s) in %.2f s", p.name, mesh.n_cells, len(groups),
              time.perf_counter() - t0)
     return mesh, groups
+
+
+def _open(path: str):
+    with gmsh_session() as gmsh:
+        try:
+            gmsh.open(path)
+            return _extract(gmsh)
+        except InputError:
+            raise
+        except Exception as exc:
+            raise InputError("mesh.file", f"cannot read {path!r} as a Gmsh mesh (format 2.2 or 4.1): "
+                             f"{gmsh_last_error(gmsh, exc)}") from None
+
+
+def _isolated(fn, path: str):
+    """``fn(path)`` in a forked child process: gmsh crashes (SIGSEGV) on some malformed files (an
+    element whose type was changed, in a MSH 2.2 file), which would end polypore itself without a
+    word; a crash of the child is an InputError naming the file. In-process where there is no fork
+    (Windows) and in a distributed run (MPI does not like forks)."""
+    import os
+    import pickle
+    import signal
+
+    from ..solvers.distributed import context
+
+    if not hasattr(os, "fork") or context() is not None:
+        return fn(path)
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:                                      # the child: never returns
+        status = 0
+        try:
+            os.close(r)
+            try:
+                out = ("ok", fn(path))
+            except InputError as exc:
+                out = ("input", (exc.field, exc.detail))
+            except BaseException as exc:              # reported by the parent, as it would be in-process
+                out = ("error", (type(exc).__name__, str(exc)))
+            with os.fdopen(w, "wb") as f:
+                f.write(pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL))
+        except BaseException:
+            status = 1
+        finally:
+            os._exit(status)
+    os.close(w)
+    try:
+        with os.fdopen(r, "rb") as f:
+            raw = f.read()
+        _, status = os.waitpid(pid, 0)
+    except BaseException:                             # interrupted (SIGINT, SIGTERM): the child goes too
+        try:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+        except OSError:
+            pass
+        raise
+    if os.WIFSIGNALED(status) or not raw:
+        sig = os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
+        how = f"gmsh crashed on it ({signal.Signals(sig).name})" if sig else "its reader ended without a result"
+        raise InputError("mesh.file", f"cannot read {path!r} as a Gmsh mesh (format 2.2 or 4.1): {how}; the file is "
+                         "malformed")
+    kind, value = pickle.loads(raw)
+    if kind == "input":
+        raise InputError(*value)
+    if kind == "error":
+        raise RuntimeError(f"reading {path!r} failed in its child process: {value[0]}: {value[1]}")
+    return value
 
 
 def _extract(gmsh):
