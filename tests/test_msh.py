@@ -312,3 +312,26 @@ def test_file_that_crashes_gmsh_is_an_input_error(tmp_path):
         with pytest.raises(InputError, match=r"gmsh crashed on it \(SIGSEGV\); the file is malformed") as exc:
             read_msh(str(bad))
         assert exc.value.field == "mesh.file"
+
+
+def test_reading_after_a_superlu_factorisation_is_quiet(tmp_path, capfd):
+    """A factorisation on core/interruptible.py's worker thread, then a .msh read (forked child):
+    the child printed "SystemError: ... returned a result with an exception set" (the live worker
+    that had run SuperLU was torn down in it); the idle worker is now ended before the fork."""
+    import signal
+
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from polypore.core.interruptible import interruptible
+
+    old = signal.signal(signal.SIGTERM, lambda *a: None)     # a Python handler: the worker is used
+    try:
+        lu = interruptible(spla.splu, (sp.random(30, 30, density=0.2, random_state=1) + sp.eye(30)).tocsc())
+        assert lu.shape == (30, 30)
+        mesh, _ = read_msh(str(write_2d(tmp_path / "sq.msh")))
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    assert mesh.n_cells > 0
+    err = capfd.readouterr().err
+    assert "SystemError" not in err and "Exception ignored" not in err, err

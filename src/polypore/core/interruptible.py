@@ -42,12 +42,10 @@ class _Worker:
         self.busy = False
         self.thread = threading.Thread(target=self._loop, name="polypore-native-calls", daemon=True)
         self.thread.start()
-        atexit.register(self._stop)
+        atexit.register(self.stop)
 
-    def _stop(self):
-        # an idle worker ends before the interpreter's shutdown: a daemon thread that had run
-        # SuperLU, left waiting, broke the final flush of stdout (exit status 120 after a
-        # successful run); a busy (abandoned) one is left to os._exit
+    def stop(self):
+        """End the thread if it is idle (a busy, abandoned one is left to os._exit)."""
         if not self.busy and self.thread.is_alive():
             self.jobs.put(None)
             self.thread.join(timeout=1.0)
@@ -67,6 +65,18 @@ class _Worker:
 
 
 _WORKER: _Worker | None = None
+
+
+def stop_worker() -> None:
+    """End the idle worker thread; the next call starts a new one. Called at exit and before a
+    fork: a live thread that had run SciPy's SuperLU left the interpreter with an error set
+    where it tore the thread's state down (the final flush of stdout failed: exit status 120
+    after a successful run; a forked child printed "SystemError: ... returned a result with an
+    exception set")."""
+    global _WORKER
+    if _WORKER is not None and not _WORKER.busy:
+        _WORKER.stop()
+        _WORKER = None
 
 
 def abandoned() -> bool:

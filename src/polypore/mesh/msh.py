@@ -160,6 +160,9 @@ def _isolated(fn, path: str):
 
     if not hasattr(os, "fork") or context() is not None:
         return fn(path)
+    from ..core.interruptible import stop_worker
+
+    stop_worker()      # no thread that ran SuperLU may be torn down in the child (core/interruptible.py)
     r, w = os.pipe()
     pid = os.fork()
     if pid == 0:                                      # the child: never returns
