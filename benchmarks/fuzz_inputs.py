@@ -76,21 +76,39 @@ def main(argv=None) -> int:
             if args.stop:
                 raise Stop
 
-    # each family its share of the examples (exactly: hypothesis would not draw the families in
-    # proportion to weights), one after the other
+    # each family its share of the examples, drawn kind by kind (an equal part each): hypothesis,
+    # left to pick the kinds, spends its examples on the kinds with the most variants (the position
+    # of a NUL byte) once the small ones are exhausted. A kind with fewer distinct examples than
+    # its part is run whole and the rest goes to the others (each example is distinct).
     total_w = sum(weights.get(f, 1) for f in families)
     share = {f: round(args.examples * weights.get(f, 1) / total_w) for f in families}
     share[families[0]] += args.examples - sum(share.values())
+
+    def draw(strategy, n, k):
+        run = seed(args.seed + k)(settings(max_examples=n, database=None, deadline=None, phases=["generate"],
+                                           suppress_health_check=list(HealthCheck))(given(strategy)(one)))
+        run()
+
     t0 = time.perf_counter()
     try:
         for f in families:
-            if share[f] <= 0:
-                continue
-            run = seed(args.seed)(settings(max_examples=share[f], database=None, deadline=None, phases=["generate"],
-                                           suppress_health_check=list(HealthCheck))(
-                given(inputfuzz.STRATEGIES[f]())(one)))
             t1 = time.perf_counter()
-            run()
+            kinds = inputfuzz.KINDS[f]
+            if kinds is None:
+                draw(inputfuzz.STRATEGIES[f](), share[f], 0)
+            else:
+                active, rnd = list(kinds), 0
+                while stats[f]["examples"] < share[f] and active:
+                    for kind in list(active):
+                        left = share[f] - stats[f]["examples"]
+                        if left <= 0:
+                            break
+                        ask = min(left, max(1, left // len(active)))
+                        before = stats[f]["examples"]
+                        draw(inputfuzz.STRATEGIES[f](kinds=(kind,)), ask, 1000 * rnd)
+                        if stats[f]["examples"] - before < ask:
+                            active.remove(kind)          # every distinct example of the kind was run
+                    rnd += 1
             print(f"{f}: {stats[f]['examples']} examples in {time.perf_counter() - t1:.1f} s", flush=True)
     except Stop:
         print("stopped at the first bug (--stop)")

@@ -1,6 +1,7 @@
 """Reading Gmsh .msh files: regions, boundary groups, fracture groups, errors, the CLI."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -335,3 +336,23 @@ def test_reading_after_a_superlu_factorisation_is_quiet(tmp_path, capfd):
     assert mesh.n_cells > 0
     err = capfd.readouterr().err
     assert "SystemError" not in err and "Exception ignored" not in err, err
+
+
+@pytest.mark.parametrize("version", [2.2, 4.1])
+@pytest.mark.parametrize("bad", ["1e", "0.5x", "1..2"])
+def test_corrupted_number_is_refused(tmp_path, version, bad):
+    """gmsh reads a prefix of a corrupted number ("1e" as 1, "0.5x" as 0.5): a node moved
+    silently (found by the input fuzz, issue 25). The $Nodes and $Elements of an ASCII file are
+    checked first; the error names the line and the token."""
+    text = write_2d(tmp_path / "sq.msh", version).read_text()
+    a = text.index("$Nodes\n")
+    lines = text[a:].split("\n")
+    i = next(k for k, ln in enumerate(lines) if len(ln.split()) == (4 if version == 2.2 else 3) and k > 3)
+    parts = lines[i].split()
+    parts[-2] = bad
+    lines[i] = " ".join(parts)
+    (tmp_path / "bad.msh").write_text(text[:a] + "\n".join(lines))
+    with pytest.raises(InputError, match=rf"line {text[:a].count(chr(10)) + i + 1}: '{re.escape(bad)}' in \$Nodes "
+                       "is not a number") as exc:
+        read_msh(str(tmp_path / "bad.msh"))
+    assert exc.value.field == "mesh.file"

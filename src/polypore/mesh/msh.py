@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import re
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -127,12 +128,38 @@ def read_msh(path: str) -> tuple[Mesh, dict]:
     if not head.startswith(b"$MeshFormat"):
         raise InputError("mesh.file", f"{str(p)!r} is not a Gmsh mesh file: it must start with $MeshFormat "
                          "(formats 2.2 and 4.1, ASCII or binary)")
+    _check_ascii_numbers(p, head)
     t0 = time.perf_counter()
     data = _isolated(_open, str(p))
     mesh, groups = _build(str(p), *data)
     log.info("read %s: %d cells, %d fracture group(s) in %.2f s", p.name, mesh.n_cells, len(groups),
              time.perf_counter() - t0)
     return mesh, groups
+
+
+# a number as the MSH format writes it; gmsh's C reader takes a prefix of anything else ("1e" is 1)
+_NOT_A_NUMBER = re.compile(rb"(?<!\S)(?![-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?!\S))\S+")
+
+
+def _check_ascii_numbers(p: Path, head: bytes) -> None:
+    """InputError if the $Nodes or $Elements section of an ASCII file holds a token that is not a
+    number: gmsh reads "1e" as 1 and "0.5x" as 0.5, a corrupted file silently read as another mesh."""
+    fmt = head.split(b"\n", 2)[1].split() if head.count(b"\n") >= 2 else []
+    if len(fmt) < 2 or fmt[1] != b"0":
+        return                                        # binary (or malformed: gmsh says so)
+    data = p.read_bytes()
+    for name in (b"Nodes", b"Elements"):
+        a = data.find(b"$" + name + b"\n")
+        z = data.find(b"$End" + name, a + 1)
+        if a < 0 or z < 0:
+            continue
+        a += len(name) + 2
+        bad = _NOT_A_NUMBER.search(data, a, z)
+        if bad:
+            line = data.count(b"\n", 0, bad.start()) + 1
+            token = bad.group(0)[:20].decode("ascii", "replace")
+            raise InputError("mesh.file", f"{str(p)!r} line {line}: {token!r} in ${name.decode()} is not a number; "
+                             "the nodes and elements of a Gmsh mesh file are numbers")
 
 
 def _open(path: str):
