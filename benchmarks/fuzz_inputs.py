@@ -90,12 +90,15 @@ def main(argv=None) -> int:
         run()
 
     t0 = time.perf_counter()
+    # the case-file family last: it takes what the others could not use (all their distinct examples run)
+    order = sorted(families, key=lambda f: inputfuzz.KINDS[f] is None)
     try:
-        for f in families:
+        for f in order:
             t1 = time.perf_counter()
             kinds = inputfuzz.KINDS[f]
             if kinds is None:
-                draw(inputfuzz.STRATEGIES[f](), share[f], 0)
+                n = args.examples - sum(stats[g]["examples"] for g in families if g != f)
+                draw(inputfuzz.STRATEGIES[f](), n, 0)
             else:
                 active, rnd = list(kinds), 0
                 while stats[f]["examples"] < share[f] and active:

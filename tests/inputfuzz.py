@@ -862,7 +862,10 @@ def write_calls(command: str) -> int:
 
 
 FS_KINDS = ("case_missing", "case_dir", "case_fifo", "case_devzero", "case_loop", "case_unreadable", "out_under_file",
-            "out_long", "out_proc", "out_root", "disk_full", "eio", "grdecl_dir", "grdecl_fifo", "grdecl_devzero", "valid")
+            "out_long", "out_proc", "out_root", "disk_full", "eio", "write_fault", "grdecl_dir", "grdecl_fifo", "grdecl_devzero",
+            "valid")
+# the errors of the write_fault kind: a quota, a file too large, a read-only remount, permissions changed mid-run
+WRITE_FAULTS = ("EDQUOT", "EFBIG", "EROFS", "EACCES", "EPERM")
 
 
 @st.composite
@@ -872,8 +875,10 @@ def fs_examples(draw, kinds=None):
     expect = "refuse"
     nth = draw(st.integers(1, write_calls(command)))
     what = f"{command}: {kind}"
-    if kind in ("disk_full", "eio"):
-        what += f" at write call {nth}"
+    fault = {"disk_full": "ENOSPC", "eio": "EIO"}.get(kind) or (
+        draw(st.sampled_from(WRITE_FAULTS)) if kind == "write_fault" else None)
+    if fault:
+        what += f" ({fault}) at write call {nth}"
     if kind == "valid":
         expect = "accept"
 
@@ -915,11 +920,11 @@ def fs_examples(draw, kinds=None):
                 os.mkfifo(tmp / "g.grdecl")
             case.write_text(GRDECL_CASE.format(file=target))
         counter = [0]
-        if kind in ("disk_full", "eio"):
-            pre = fail_writes(nth, errno.ENOSPC if kind == "disk_full" else errno.EIO, counter)
+        if fault:
+            pre = fail_writes(nth, getattr(errno, fault), counter)
         with pre:
             res = cli_main(["-q", command, arg, "--out", str(out)])
-        if kind in ("disk_full", "eio"):
+        if fault:
             if counter[0] < nth:
                 res.kind = "ok-no-fault" if res.kind == "ok" else res.kind   # fewer writes than nth
             if res.kind == "input" and res.field is None:

@@ -443,11 +443,12 @@ def test_proc_paths_are_refused(tiny, cli, monkeypatch, out, msg):
     assert code == 2 and "--out" in err and msg in err, err
 
 
-@pytest.mark.parametrize("code_name", ["ENOSPC", "EIO"])
+@pytest.mark.parametrize("code_name", ["ENOSPC", "EIO", "EACCES", "EPERM", "EROFS"])
 def test_full_disk_during_the_run_fails_cleanly(tmp_path, tiny, cli, monkeypatch, code_name):
     """ENOSPC while the run writes its files: exit 1 naming the folder, failed.json in place of
     the previous result, no staging folder, nothing that looks complete. EIO (a failing device or
-    network file system) ended in a traceback (found by the input fuzz, issue 25)."""
+    network file system) and EACCES/EPERM (permissions changed mid-run) ended in a traceback (found
+    by the input fuzz, issue 25)."""
     import errno
 
     from polypore.io import atomic
