@@ -42,7 +42,6 @@ class _Worker:
         self.busy = False
         self.thread = threading.Thread(target=self._loop, name="polypore-native-calls", daemon=True)
         self.thread.start()
-        atexit.register(self.stop)
 
     def stop(self):
         """End the thread if it is idle (a busy, abandoned one is left to os._exit)."""
@@ -77,6 +76,9 @@ def stop_worker() -> None:
     if _WORKER is not None and not _WORKER.busy:
         _WORKER.stop()
         _WORKER = None
+
+
+atexit.register(stop_worker)
 
 
 def abandoned() -> bool:
