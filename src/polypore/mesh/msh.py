@@ -92,7 +92,7 @@ def gmsh_last_error(gmsh, exc: Exception) -> str:
     return msg.replace("\n", " ").strip() or type(exc).__name__
 
 
-def read_msh(path: str) -> tuple[Mesh, dict]:
+def read_msh(path: str, isolate: bool = True) -> tuple[Mesh, dict]:
     """Read a Gmsh mesh file.
 
     2D meshes (triangles, quadrilaterals, all z = 0) get (n, 2) nodes; 3D meshes may
@@ -103,6 +103,9 @@ def read_msh(path: str) -> tuple[Mesh, dict]:
     ----------
     path : str
         A ``.msh`` file, format 2.2 or 4.1.
+    isolate : bool
+        Open it with gmsh in a forked child process (:func:`_isolated`); False in a distributed
+        run (MPI does not like forks).
 
     Returns
     -------
@@ -130,7 +133,7 @@ def read_msh(path: str) -> tuple[Mesh, dict]:
                          "(formats 2.2 and 4.1, ASCII or binary)")
     _check_ascii_numbers(p, head)
     t0 = time.perf_counter()
-    data = _isolated(_open, str(p))
+    data = _isolated(_open, str(p)) if isolate else _open(str(p))
     mesh, groups = _build(str(p), *data)
     log.info("read %s: %d cells, %d fracture group(s) in %.2f s", p.name, mesh.n_cells, len(groups),
              time.perf_counter() - t0)
@@ -178,14 +181,12 @@ def _isolated(fn, path: str):
     """``fn(path)`` in a forked child process: gmsh crashes (SIGSEGV) on some malformed files (an
     element whose type was changed, in a MSH 2.2 file), which would end polypore itself without a
     word; a crash of the child is an InputError naming the file. In-process where there is no fork
-    (Windows) and in a distributed run (MPI does not like forks)."""
+    (Windows)."""
     import os
     import pickle
     import signal
 
-    from ..solvers.distributed import context
-
-    if not hasattr(os, "fork") or context() is not None:
+    if not hasattr(os, "fork"):
         return fn(path)
     from ..core.interruptible import stop_worker
 

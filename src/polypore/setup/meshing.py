@@ -262,7 +262,9 @@ def _file_mesh(case: CaseFile, spec, t0: float) -> FracturedMesh:
     path = Path(spec.mesh.file)
     if not path.is_absolute():
         path = Path(spec.base_dir or ".") / path
-    mesh, groups_found = read_msh(str(path))
+    from ..solvers.distributed import context
+
+    mesh, groups_found = read_msh(str(path), isolate=context() is None)   # no fork under MPI
     dim = mesh.dim
     named, normals = {}, {}
     for f in spec.fractures:
