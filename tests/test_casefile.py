@@ -111,3 +111,46 @@ def test_case_toml_has_no_base_dir_and_an_absolute_mesh_file(tmp_path):
     assert "base_dir" not in tomllib.loads(copy.read_text())
     again = load_case(str(copy))
     assert again.spec.mesh.file == str((tmp_path / "case" / "g.grdecl").resolve())
+
+
+# -- found by the input fuzz (issue 25, tests/inputfuzz.py) ---------------------------------------------
+def test_oversized_case_file_is_refused_unread(tmp_path):
+    """A 50 MB case file (comments) was parsed, for seconds, and accepted; a sparse 200 MB one was
+    read whole. Refused by its size, before it is read."""
+    import time
+
+    from conftest import STATIC_2D
+
+    from polypore.setup.casefile import MAX_CASE_BYTES
+
+    p = tmp_path / "big.toml"
+    p.write_text(STATIC_2D)
+    with open(p, "r+b") as f:
+        f.truncate(200 * 2**20)
+    t0 = time.perf_counter()
+    with pytest.raises(InputError, match=r"has 200\.0 MiB; a case file may have at most 8 MiB") as exc:
+        load_case(str(p))
+    assert exc.value.field == "case" and time.perf_counter() - t0 < 1.0
+    p.write_text(STATIC_2D + "#" * (MAX_CASE_BYTES - len(STATIC_2D) - 1) + "\n")   # the limit itself: read
+    assert load_case(str(p)).name == "t"
+
+
+def test_byte_order_mark_is_accepted(tmp_path):
+    """A UTF-8 byte-order mark (some Windows editors) made the file "not valid TOML" at line 1."""
+    from conftest import STATIC_2D
+
+    p = tmp_path / "bom.toml"
+    p.write_bytes(b"\xef\xbb\xbf" + STATIC_2D.replace("\n", "\r\n").encode())
+    assert load_case(str(p)).spec.material.E == 1e9
+
+
+def test_long_unknown_key_is_clipped_in_the_error(tmp_path):
+    """An unknown key of 10^6 characters was quoted whole (twice) in the error."""
+    from conftest import STATIC_2D
+
+    p = tmp_path / "k.toml"
+    p.write_text(STATIC_2D.replace("[material]\n", "[material]\n" + "k" * 10**6 + " = 1\n"))
+    with pytest.raises(InputError, match="unknown key") as exc:
+        load_case(str(p))
+    assert exc.value.field == "material." + "k" * 48 + "…(1000000 characters)"
+    assert len(str(exc.value)) < 1000

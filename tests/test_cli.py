@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 from conftest import STATIC_2D
@@ -234,3 +235,30 @@ def test_mesh_makes_the_case_checks_of_run(tmp_path, cli, text, old, new, field,
     case.write_text(text)
     code, _, err = cli("mesh", str(case), "--out", str(tmp_path / "ok"))
     assert code == 0, err
+
+
+@pytest.mark.parametrize("kind,says", [("folder", "is a folder, not a file"),
+                                       ("fifo", "is not a regular file (a pipe, a socket or a device)"),
+                                       ("loop", "cannot be read: Too many levels of symbolic links"),
+                                       ("device", "is not a regular file")])
+@pytest.mark.parametrize("where", ["case", "mesh.file"])
+def test_input_path_that_is_not_a_file(tmp_path, cli, kind, says, where):
+    """A case file or GRDECL file that is a folder, a FIFO, a symbolic-link loop or a device was
+    reported as "does not exist" (found by the input fuzz, issue 25); none is read (a FIFO would
+    block)."""
+    import os
+
+    p = {"folder": tmp_path / "x.toml", "fifo": tmp_path / "x.toml", "loop": tmp_path / "x.toml",
+         "device": Path("/dev/zero")}[kind]
+    if kind == "folder":
+        p.mkdir()
+    elif kind == "fifo":
+        os.mkfifo(p)
+    elif kind == "loop":
+        p.symlink_to(p)
+    case = p
+    if where == "mesh.file":
+        case = tmp_path / "case.toml"
+        case.write_text(f'name = "g"\n[mesh]\ngenerator = "grdecl"\nfile = "{p}"\n')
+    code, _, err = cli("mesh", str(case), "--out", str(tmp_path / "o"))
+    assert code == 2 and f"error: {where}: " in err and says in err and str(p) in err, err

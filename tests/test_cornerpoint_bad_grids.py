@@ -120,3 +120,45 @@ def test_good_grid_passes(tmp_path):
     (tmp_path / "bad.grdecl").write_text(grid_text(good(), tmp_path))
     (tmp_path / "case.toml").write_text(CASE)
     assert main(["mesh", str(tmp_path / "case.toml"), "--out", str(tmp_path / "out")]) == 0
+
+
+# -- found by the input fuzz (issue 25, tests/inputfuzz.py) ---------------------------------------------
+def replace_value(text: str, kw: str, k: int, new: str) -> str:
+    """The k-th value (0-based) of keyword kw's block replaced by ``new``."""
+    a, b = keyword_block(text, kw)
+    head, _, rest = text[a:b].partition("\n")
+    vals = rest.rstrip("/").split()
+    vals[k] = new
+    return text[:a] + head + "\n" + " ".join(vals) + "\n/" + text[b:]
+
+
+@pytest.mark.parametrize("kw", ["COORD", "ZCORN"])
+@pytest.mark.parametrize("bad,says", [("inf", "not a finite number"), ("-Inf", "not a finite number"),
+                                      ("nan", "not a finite number"), ("1e999", "overflows"),
+                                      ("-1e300", "within ±1e+09 m"), ("1e300", "within ±1e+09 m")])
+def test_non_finite_or_huge_values(tmp_path, capsys, kw, bad, says):
+    """inf in COORD was accepted; nan was called a defaulted value; -1e300 in ZCORN ended in a
+    ValueError traceback (overflow in the node merging)."""
+    err = run_cli(tmp_path, capsys, replace_value(grid_text(good(), tmp_path), kw, 5, bad))
+    assert f"bad.grdecl:{kw}" in err and "value 6" in err and says in err, err
+
+
+@pytest.mark.parametrize("kind", ["fifo", "dev_zero", "directory"])
+def test_include_of_a_fifo_device_or_folder_is_refused(tmp_path, capsys, kind):
+    """INCLUDE of a FIFO blocked forever (and /dev/zero would never end): regular files only."""
+    import os
+
+    target = {"fifo": str(tmp_path / "pipe.grdecl"), "dev_zero": "/dev/zero", "directory": str(tmp_path)}[kind]
+    if kind == "fifo":
+        os.mkfifo(target)
+    text = grid_text(good(), tmp_path)
+    err = run_cli(tmp_path, capsys, f"INCLUDE\n '{target}' /\n\n" + text)
+    assert "is not a regular file" in err and target in err
+
+
+@pytest.mark.parametrize("kw", ["SPECGRID", "DIMENS"])
+def test_specgrid_without_its_slash_is_refused(tmp_path, capsys, kw):
+    """SPECGRID without its '/' silently swallowed the next keyword (GDORIENT, MAPAXES)."""
+    text = grid_text(good(), tmp_path).replace("SPECGRID\n 3 2 2 1 F /", f"{kw}\n 3 2 2 1 F\n\nMAPAXES\n0 1 0 0 1 0 /")
+    err = run_cli(tmp_path, capsys, text)
+    assert f"bad.grdecl:{kw}" in err and "items" in err

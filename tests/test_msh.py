@@ -1,6 +1,7 @@
 """Reading Gmsh .msh files: regions, boundary groups, fracture groups, errors, the CLI."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -291,3 +292,67 @@ friction = 0.3
     assert len(rows) == fm.network.n_faces
     np.testing.assert_allclose(sorted(float(r["s"]) for r in rows), np.sort(s), atol=1e-9)
     assert (tmp_path / "r" / "profiles.png").stat().st_size > 0
+
+
+def test_file_that_crashes_gmsh_is_an_input_error(tmp_path):
+    """gmsh dies of SIGSEGV on some malformed MSH 2.2 files (triangle 102 of the fuzz's square
+    given the type of a pyramid, 7, or triangle 63 that of a point, 15: found by the input fuzz,
+    issue 25), which ended polypore itself without a word; the file is read in a forked child,
+    whose crash is an InputError naming mesh.file."""
+    from inputfuzz import msh_bases
+
+    text = msh_bases()["2d-v2.2.msh"][0].decode()
+    for tag, new_type in (("102", "7"), ("63", "15")):
+        lines = text.split("\n")
+        at = next(i for i, ln in enumerate(lines) if ln.split()[:2] == [tag, "2"] and len(ln.split()) == 8)
+        parts = lines[at].split()
+        parts[1] = new_type
+        lines[at] = " ".join(parts)
+        bad = tmp_path / f"bad{tag}.msh"
+        bad.write_text("\n".join(lines))
+        with pytest.raises(InputError, match=r"gmsh crashed on it \(SIGSEGV\); the file is malformed") as exc:
+            read_msh(str(bad))
+        assert exc.value.field == "mesh.file"
+
+
+def test_reading_after_a_superlu_factorisation_is_quiet(tmp_path, capfd):
+    """A factorisation on core/interruptible.py's worker thread, then a .msh read (forked child):
+    the child printed "SystemError: ... returned a result with an exception set" (the live worker
+    that had run SuperLU was torn down in it); the idle worker is now ended before the fork."""
+    import signal
+
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from polypore.core.interruptible import interruptible
+
+    old = signal.signal(signal.SIGTERM, lambda *a: None)     # a Python handler: the worker is used
+    try:
+        lu = interruptible(spla.splu, (sp.random(30, 30, density=0.2, random_state=1) + sp.eye(30)).tocsc())
+        assert lu.shape == (30, 30)
+        mesh, _ = read_msh(str(write_2d(tmp_path / "sq.msh")))
+    finally:
+        signal.signal(signal.SIGTERM, old)
+    assert mesh.n_cells > 0
+    err = capfd.readouterr().err
+    assert "SystemError" not in err and "Exception ignored" not in err, err
+
+
+@pytest.mark.parametrize("version", [2.2, 4.1])
+@pytest.mark.parametrize("bad", ["1e", "0.5x", "1..2"])
+def test_corrupted_number_is_refused(tmp_path, version, bad):
+    """gmsh reads a prefix of a corrupted number ("1e" as 1, "0.5x" as 0.5): a node moved
+    silently (found by the input fuzz, issue 25). The $Nodes and $Elements of an ASCII file are
+    checked first; the error names the line and the token."""
+    text = write_2d(tmp_path / "sq.msh", version).read_text()
+    a = text.index("$Nodes\n")
+    lines = text[a:].split("\n")
+    i = next(k for k, ln in enumerate(lines) if len(ln.split()) == (4 if version == 2.2 else 3) and k > 3)
+    parts = lines[i].split()
+    parts[-2] = bad
+    lines[i] = " ".join(parts)
+    (tmp_path / "bad.msh").write_text(text[:a] + "\n".join(lines))
+    with pytest.raises(InputError, match=rf"line {text[:a].count(chr(10)) + i + 1}: '{re.escape(bad)}' in \$Nodes "
+                       "is not a number") as exc:
+        read_msh(str(tmp_path / "bad.msh"))
+    assert exc.value.field == "mesh.file"

@@ -11,6 +11,7 @@ with the process.
 
 from __future__ import annotations
 
+import atexit
 import queue
 import signal
 import threading
@@ -42,9 +43,18 @@ class _Worker:
         self.thread = threading.Thread(target=self._loop, name="polypore-native-calls", daemon=True)
         self.thread.start()
 
+    def stop(self):
+        """End the thread if it is idle (a busy, abandoned one is left to os._exit)."""
+        if not self.busy and self.thread.is_alive():
+            self.jobs.put(None)
+            self.thread.join(timeout=1.0)
+
     def _loop(self):
         while True:
-            fn, args, kwargs, box, done = self.jobs.get()
+            job = self.jobs.get()
+            if job is None:
+                return
+            fn, args, kwargs, box, done = job
             try:
                 box["value"] = fn(*args, **kwargs)
             except BaseException as exc:  # re-raised in the caller, with its traceback
@@ -54,6 +64,21 @@ class _Worker:
 
 
 _WORKER: _Worker | None = None
+
+
+def stop_worker() -> None:
+    """End the idle worker thread; the next call starts a new one. Called at exit and before a
+    fork: a live thread that had run SciPy's SuperLU left the interpreter with an error set
+    where it tore the thread's state down (the final flush of stdout failed: exit status 120
+    after a successful run; a forked child printed "SystemError: ... returned a result with an
+    exception set")."""
+    global _WORKER
+    if _WORKER is not None and not _WORKER.busy:
+        _WORKER.stop()
+        _WORKER = None
+
+
+atexit.register(stop_worker)
 
 
 def abandoned() -> bool:

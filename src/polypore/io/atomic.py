@@ -51,8 +51,10 @@ MARKER = ".polypore-run.json"
 # locked by the run that owns the folder (see _locked); never deleted
 LOCK = ".polypore-lock"
 log = logging.getLogger("polypore")
-# errors of writing, not of the run: a full disk, a quota, a file system remounted read-only
-_WRITE_ERRORS = {errno.ENOSPC, errno.EFBIG, errno.EROFS} | ({errno.EDQUOT} if hasattr(errno, "EDQUOT") else set())
+# errors of writing, not of the run: a full disk, a quota, a file system remounted read-only, a failing
+# device or network file system (EIO), permissions changed while the run ran
+_SPACE_ERRORS = {errno.ENOSPC, errno.EFBIG} | ({errno.EDQUOT} if hasattr(errno, "EDQUOT") else set())
+_WRITE_ERRORS = _SPACE_ERRORS | {errno.EROFS, errno.EIO, errno.EACCES, errno.EPERM}
 _ACTIVE: set[Path] = set()
 
 
@@ -477,8 +479,8 @@ def run_directory(out, *, force: bool = False, option: str = "--out") -> Iterato
                     _fail(out, exc)
                     raise
                 # a full disk (or one that turned read-only) mid-run: the run failed, say where
-                err = RunError(f"cannot write the results into {str(out)!r}: {exc.strerror or exc}; free some "
-                               f"space there or choose another {option}")
+                hint = "free some space there or choose another" if exc.errno in _SPACE_ERRORS else "choose another"
+                err = RunError(f"cannot write the results into {str(out)!r}: {exc.strerror or exc}; {hint} {option}")
                 _fail(out, err)
                 raise err from exc
             except BaseException as exc:

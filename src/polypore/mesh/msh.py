@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+import re
 import time
 from contextlib import contextmanager
 from pathlib import Path
@@ -17,6 +18,7 @@ from types import MappingProxyType
 import numpy as np
 
 from ..core.errors import InputError, MeshError
+from ..core.paths import not_a_file
 from ..core.ragged import INDEX, frozen
 from ..core.signals import rearm_signal_handlers
 from .build import _void_keys, mesh_from_cells
@@ -90,7 +92,7 @@ def gmsh_last_error(gmsh, exc: Exception) -> str:
     return msg.replace("\n", " ").strip() or type(exc).__name__
 
 
-def read_msh(path: str) -> tuple[Mesh, dict]:
+def read_msh(path: str, isolate: bool = True) -> tuple[Mesh, dict]:
     """Read a Gmsh mesh file.
 
     2D meshes (triangles, quadrilaterals, all z = 0) get (n, 2) nodes; 3D meshes may
@@ -101,6 +103,9 @@ def read_msh(path: str) -> tuple[Mesh, dict]:
     ----------
     path : str
         A ``.msh`` file, format 2.2 or 4.1.
+    isolate : bool
+        Open it with gmsh in a forked child process (:func:`_isolated`); False in a distributed
+        run (MPI does not like forks).
 
     Returns
     -------
@@ -117,29 +122,116 @@ def read_msh(path: str) -> tuple[Mesh, dict]:
         mixing boundary and interior faces or containing elements that are no mesh faces.
     """
     p = Path(path)
-    if not p.is_file():
-        what = "is a directory, not a mesh file" if p.is_dir() else "does not exist"
-        raise InputError("mesh.file", f"{str(p)!r} {what}")
+    what = not_a_file(p)
+    if what is not None:
+        raise InputError("mesh.file", f"{str(p)!r} {what}; mesh.file takes a Gmsh .msh file")
     with open(p, "rb") as fh:
         head = fh.read(4096).lstrip()
     # gmsh would run any other text as a .geo script (which can call the shell): refuse it
     if not head.startswith(b"$MeshFormat"):
         raise InputError("mesh.file", f"{str(p)!r} is not a Gmsh mesh file: it must start with $MeshFormat "
                          "(formats 2.2 and 4.1, ASCII or binary)")
+    _check_ascii_numbers(p, head)
     t0 = time.perf_counter()
-    with gmsh_session() as gmsh:
-        try:
-            gmsh.open(str(p))
-            data = _extract(gmsh)
-        except InputError:
-            raise
-        except Exception as exc:
-            raise InputError("mesh.file", f"cannot read {str(p)!r} as a Gmsh mesh (format 2.2 or 4.1): "
-                             f"{gmsh_last_error(gmsh, exc)}") from None
+    data = _isolated(_open, str(p)) if isolate else _open(str(p))
     mesh, groups = _build(str(p), *data)
     log.info("read %s: %d cells, %d fracture group(s) in %.2f s", p.name, mesh.n_cells, len(groups),
              time.perf_counter() - t0)
     return mesh, groups
+
+
+# a number as the MSH format writes it; gmsh's C reader takes a prefix of anything else ("1e" is 1)
+_NOT_A_NUMBER = re.compile(rb"(?<!\S)(?![-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?(?!\S))\S+")
+
+
+def _check_ascii_numbers(p: Path, head: bytes) -> None:
+    """InputError if the $Nodes or $Elements section of an ASCII file holds a token that is not a
+    number: gmsh reads "1e" as 1 and "0.5x" as 0.5, a corrupted file silently read as another mesh."""
+    fmt = head.split(b"\n", 2)[1].split() if head.count(b"\n") >= 2 else []
+    if len(fmt) < 2 or fmt[1] != b"0":
+        return                                        # binary (or malformed: gmsh says so)
+    data = p.read_bytes()
+    for name in (b"Nodes", b"Elements"):
+        a = data.find(b"$" + name + b"\n")
+        z = data.find(b"$End" + name, a + 1)
+        if a < 0 or z < 0:
+            continue
+        a += len(name) + 2
+        bad = _NOT_A_NUMBER.search(data, a, z)
+        if bad:
+            line = data.count(b"\n", 0, bad.start()) + 1
+            token = bad.group(0)[:20].decode("ascii", "replace")
+            raise InputError("mesh.file", f"{str(p)!r} line {line}: {token!r} in ${name.decode()} is not a number; "
+                             "the nodes and elements of a Gmsh mesh file are numbers")
+
+
+def _open(path: str):
+    with gmsh_session() as gmsh:
+        try:
+            gmsh.open(path)
+            return _extract(gmsh)
+        except InputError:
+            raise
+        except Exception as exc:
+            raise InputError("mesh.file", f"cannot read {path!r} as a Gmsh mesh (format 2.2 or 4.1): "
+                             f"{gmsh_last_error(gmsh, exc)}") from None
+
+
+def _isolated(fn, path: str):
+    """``fn(path)`` in a forked child process: gmsh crashes (SIGSEGV) on some malformed files (an
+    element whose type was changed, in a MSH 2.2 file), which would end polypore itself without a
+    word; a crash of the child is an InputError naming the file. In-process where there is no fork
+    (Windows)."""
+    import os
+    import pickle
+    import signal
+
+    if not hasattr(os, "fork"):
+        return fn(path)
+    from ..core.interruptible import stop_worker
+
+    stop_worker()      # no thread that ran SuperLU may be torn down in the child (core/interruptible.py)
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:                                      # the child: never returns
+        status = 0
+        try:
+            os.close(r)
+            try:
+                out = ("ok", fn(path))
+            except InputError as exc:
+                out = ("input", (exc.field, exc.detail))
+            except BaseException as exc:              # reported by the parent, as it would be in-process
+                out = ("error", (type(exc).__name__, str(exc)))
+            with os.fdopen(w, "wb") as f:
+                f.write(pickle.dumps(out, protocol=pickle.HIGHEST_PROTOCOL))
+        except BaseException:
+            status = 1
+        finally:
+            os._exit(status)
+    os.close(w)
+    try:
+        with os.fdopen(r, "rb") as f:
+            raw = f.read()
+        _, status = os.waitpid(pid, 0)
+    except BaseException:                             # interrupted (SIGINT, SIGTERM): the child goes too
+        try:
+            os.kill(pid, signal.SIGKILL)
+            os.waitpid(pid, 0)
+        except OSError:
+            pass
+        raise
+    if os.WIFSIGNALED(status) or not raw:
+        sig = os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
+        how = f"gmsh crashed on it ({signal.Signals(sig).name})" if sig else "its reader ended without a result"
+        raise InputError("mesh.file", f"cannot read {path!r} as a Gmsh mesh (format 2.2 or 4.1): {how}; the file is "
+                         "malformed")
+    kind, value = pickle.loads(raw)
+    if kind == "input":
+        raise InputError(*value)
+    if kind == "error":
+        raise RuntimeError(f"reading {path!r} failed in its child process: {value[0]}: {value[1]}")
+    return value
 
 
 def _extract(gmsh):

@@ -9,7 +9,9 @@ and an error in a value an override set also names the override.
 
 from __future__ import annotations
 
+import codecs
 import copy
+import os
 import tomllib
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -20,8 +22,11 @@ from typing import Any, Iterable
 import tomli_w
 
 from ..core.errors import InputError
+from ..core.paths import not_a_file
 from .schema import MODELS, Case, validate
 
+# the largest case file read (bytes): real ones are a few kB
+MAX_CASE_BYTES = 8 * 2**20
 CASES = "polypore.cases"   # the package that ships the built-in case files
 DATA = "data"
 
@@ -35,6 +40,8 @@ def builtin_names() -> list[str]:
 
 
 def _read_toml(raw: bytes, where: str) -> dict:
+    if raw.startswith(codecs.BOM_UTF8):   # written by some editors (Windows): not part of the text
+        raw = raw[len(codecs.BOM_UTF8):]
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:
@@ -132,12 +139,19 @@ def load_case(name_or_path: str, overrides: Iterable[str] = ()) -> CaseFile:
         source = f"builtin:{name_or_path}"
     elif path.suffix == ".toml" or _exists(path):
         if not _exists(path, file=True):
-            raise InputError("case", f"case file {str(path)!r} does not exist; give a built-in case name "
-                             f"({', '.join(builtin_names())}) or the path of a TOML case file")
+            raise InputError("case", f"case file {str(path)!r} {not_a_file(path) or 'does not exist'}; give a "
+                             f"built-in case name ({', '.join(builtin_names())}) or the path of a TOML case file")
         try:
-            raw = path.read_bytes()
+            with open(path, "rb") as f:
+                size = os.fstat(f.fileno()).st_size
+                # refused before it is read: a case file is a few kB, a huge file is a mistake (a mesh?)
+                raw = f.read(MAX_CASE_BYTES + 1) if size <= MAX_CASE_BYTES else b""
         except OSError as exc:
-            raise InputError("case", f"case file {str(path)!r} cannot be read: {exc.strerror}") from None
+            raise InputError("case", f"case file {str(path)!r} cannot be read: {exc.strerror or exc}") from None
+        if max(size, len(raw)) > MAX_CASE_BYTES:
+            raise InputError("case", f"case file {str(path)!r} has {max(size, len(raw)) / 2**20:.1f} MiB; a case "
+                             f"file may have at most {MAX_CASE_BYTES >> 20} MiB (meshes and grids go in their own "
+                             "files: mesh.file)")
         data = _read_toml(raw, f"case file {str(path)!r}")
         source = str(path.resolve())
         if "name" not in data:

@@ -262,7 +262,9 @@ def _file_mesh(case: CaseFile, spec, t0: float) -> FracturedMesh:
     path = Path(spec.mesh.file)
     if not path.is_absolute():
         path = Path(spec.base_dir or ".") / path
-    mesh, groups_found = read_msh(str(path))
+    from ..solvers.distributed import context
+
+    mesh, groups_found = read_msh(str(path), isolate=context() is None)   # no fork under MPI
     dim = mesh.dim
     named, normals = {}, {}
     for f in spec.fractures:
@@ -314,8 +316,11 @@ def grdecl_path(file: str, base_dir: str | None) -> Path:
     for c in candidates:
         if c.is_file():
             return c
-    raise InputError("mesh.file", f"GRDECL file {str(candidates[0])!r} does not exist (a relative path is taken from "
-                     "the case file's folder)")
+    from ..core.paths import not_a_file
+
+    why = not_a_file(candidates[0]) or "does not exist"
+    raise InputError("mesh.file", f"GRDECL file {str(candidates[0])!r} {why} (a relative path is taken from the case "
+                     "file's folder)")
 
 
 def cornerpoint_refinement(mesh) -> tuple[int, int, int]:

@@ -10,6 +10,7 @@ read in a few seconds.
 from __future__ import annotations
 
 import re
+import stat
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,6 +48,10 @@ _KEYWORD = re.compile(r"^[ \t]*([A-Za-z][A-Za-z0-9_+\-]{0,7})[ \t]*\r?$", re.M)
 _COMMENT_OR_QUOTE = re.compile(r"'[^'\n]*'|--[^\n]*")
 _REPEAT = re.compile(r"(?<![^\s])(\d+)\*(\S*)")
 _TOKEN = re.compile(r"'([^']*)'|(\S+)")
+_NOT_FINITE = re.compile(r"(?i)(?<![^\s*])[+-]?(nan|inf)")
+# the largest coordinate or depth taken (m): far beyond the earth (UTM northings in feet are 3e7),
+# near enough that the geometry's products of coordinates stay finite
+MAX_COORDINATE = 1e9
 # Errors name the file, the keyword and the line, but never quote the file's text: mesh.file may
 # point at any file the user can read (a system file), and messages end up in logs and web pages.
 
@@ -169,6 +174,12 @@ def _numbers(block: str, kw: str, where: str, limit: tuple | None = None, line=N
     beyond it (or beyond :data:`MAX_EXPANDED`) are an error naming ``line()``, the keyword's
     line, before any memory is taken.
     """
+    word = _NOT_FINITE.search(block)
+    if word:
+        # a written nan or inf (n* defaults are NaN too, and refused as such by the caller)
+        k = len(block[:word.start()].split()) + 1
+        raise InputError(f"{where}:{kw}", f"value {k} is not a finite number{_on_line(line)}; {kw} takes "
+                         "finite numbers")
     if "*" in block:
         size = _expanded_size(block)
         need = limit[0] if limit is not None else None
@@ -185,9 +196,15 @@ def _numbers(block: str, kw: str, where: str, limit: tuple | None = None, line=N
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         try:
-            return np.fromstring(block, sep=" ")
+            values = np.fromstring(block, sep=" ")
         except (ValueError, DeprecationWarning):
-            pass
+            values = None
+    if values is not None:
+        big = np.flatnonzero(np.isinf(values))
+        if big.size:
+            raise InputError(f"{where}:{kw}", f"value {big[0] + 1} (after repeat counts are expanded) overflows: "
+                             f"beyond ±1.8e308{_on_line(line)}; {kw} takes finite numbers")
+        return values
     for k, tok in enumerate(block.split()):
         try:
             float(tok)
@@ -211,6 +228,10 @@ class _Parser:
         if depth > 20:
             raise InputError(str(path), "INCLUDE nested more than 20 levels (an include loop?)")
         try:
+            # a FIFO would block the read forever, a device (/dev/zero) never end it: regular files only
+            if not stat.S_ISREG(path.stat().st_mode):
+                raise InputError(str(path), "is not a regular file (a folder, a pipe or a device); "
+                                 "INCLUDE and mesh.file take GRDECL files")
             text = path.read_text(errors="replace")
         except OSError as exc:
             raise InputError(str(path), f"cannot read the file: {exc.strerror or exc}") from None
@@ -274,6 +295,11 @@ class _Parser:
                 except ValueError:
                     raise InputError(f"{where}:{kw}", f"nx ny nz must be integers (line {line_of(kw_start)})") \
                         from None
+                if len(toks) > (5 if kw == "SPECGRID" else 3):
+                    # the '/' is missing: the record ran on into the next keywords
+                    raise InputError(f"{where}:{kw}", f"has {len(toks)} items (line {line_of(kw_start)}); "
+                                     f"{kw} takes {'nx ny nz [numres [F]]' if kw == 'SPECGRID' else 'nx ny nz'} "
+                                     "ended by '/'")
                 if len(dims) != 3 or min(dims) < 1:
                     raise InputError(f"{where}:{kw}", f"needs three positive integers nx ny nz, got {dims} (line "
                                      f"{line_of(kw_start)})")
@@ -395,6 +421,11 @@ def read_grdecl(path) -> CornerPointGrid:
 
     coord = get("COORD", 6 * (nx + 1) * (ny + 1)) * p.grid_scale
     zcorn = get("ZCORN", 8 * ncell) * p.grid_scale
+    for kw, v in (("COORD", coord), ("ZCORN", zcorn)):
+        far = np.flatnonzero(np.abs(v) > MAX_COORDINATE)
+        if far.size:
+            raise InputError(f"{where}:{kw}", f"value {far[0] + 1} is {v[far[0]]:.3g} m; {kw} takes coordinates "
+                             f"within ±{MAX_COORDINATE:.0e} m")
     act_src = p.raw.get("ACTNUM", (None, where))[1]
     act = get("ACTNUM", ncell, required=False)
     if act is not None:

@@ -9,6 +9,11 @@ from ...core.errors import InputError
 from .types import show
 
 
+def _clip(part: str) -> str:
+    # a key or name of any length may come from the file: the field names it, clipped
+    return part if len(part) <= 64 else f"{part[:48]}…({len(part)} characters)"
+
+
 def field_path(loc, data) -> str:
     """Dotted path of ``loc`` (keys and list indices) in the raw case ``data``; a list element
     that has a name is called by it, as ``--set`` addresses it."""
@@ -17,9 +22,9 @@ def field_path(loc, data) -> str:
         if isinstance(key, int) and isinstance(node, list) and 0 <= key < len(node):
             node = node[key]
             name = node.get("name") if isinstance(node, dict) else None
-            parts.append(name if isinstance(name, str) and name else str(key))
+            parts.append(_clip(name) if isinstance(name, str) and name else str(key))
             continue
-        parts.append(str(key))
+        parts.append(_clip(str(key)))
         node = node.get(key) if isinstance(node, dict) else None
     return ".".join(parts)
 
