@@ -58,6 +58,25 @@ def _cell_value(name: str):
     return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
 
 
+ORDER_AUTO = "auto"
+
+
+def _order():
+    """``mechanics.order``: 1, 2 or "auto" (resolved on the mesh: setup/mechanics.py, ``resolve_order``)."""
+
+    def check(v):
+        if isinstance(v, str):
+            if v.strip() == ORDER_AUTO:
+                return ORDER_AUTO
+            fail(f"expected 1, 2 or \"auto\", got {show(v)}")
+        if isinstance(v, bool) or not is_number(v) or not finite(v) or int(v) != v or int(v) not in (1, 2):
+            fail(f"expected 1 (nodal + bubble space), 2 (quadratic, simplicial meshes) or \"auto\", got {show(v)}")
+        return int(v)
+
+    schema = {"anyOf": [{"type": "integer", "minimum": 1, "maximum": 2}, {"enum": [ORDER_AUTO]}]}
+    return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
+
+
 class Material(Table):
     """``[material]``: isotropic elasticity, E and ν or the Lamé parameters μ and λ.
 
@@ -148,8 +167,9 @@ def _zero(v) -> bool:
 class Mechanics(Table):
     """``[mechanics]``: discretisation options, loads, the Biot coefficient and boundary conditions."""
 
-    order: number(ge=1, le=2, integer=True) = Field(1, description="displacement space: 1 nodal + bubbles, 2 "
-                                                    "quadratic (simplicial meshes)")
+    order: _order() = Field("auto", description="displacement space: 1 nodal + face bubbles (any polytopal mesh), "
+                            "2 quadratic (triangles / tetrahedra only), or \"auto\": 2 on a 3D mesh of tetrahedra "
+                            "with fractures, else 1 (docs/defaults.md)")
     bubbles: choice("one-sided", "two-sided") = Field("one-sided", description="face bubbles on one or both "
                                                        "sides of each fracture")
     stabilisation: Positive = Field(1.0, description="scaling of the stabilisation")
