@@ -69,7 +69,7 @@ def test_a_given_order_is_kept(tmp_path):
         case = _case(tmp_path, _tets(), [f"mechanics.order={given}"])
         setup = mechanics_setup(case, build_fractured_mesh(case))
         assert setup.data.order == given and setup.choices["order_source"] == "given"
-    # a 2D simplicial mesh takes 2 when asked (P2 exists there), a Cartesian one refuses it
+    # anything else is refused, naming the allowed values
     with pytest.raises(InputError, match=r"^mechanics.order: expected 1 .*, 2 .* or \"auto\", got 3"):
         load_case("cube-slip-3d", ["mechanics.order=3"])
     with pytest.raises(InputError, match=r"^mechanics.order: expected 1, 2 or \"auto\", got 'quadratic'"):
