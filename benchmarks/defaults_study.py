@@ -196,6 +196,20 @@ def _c5_faces(path: Path) -> dict:
     return out
 
 
+def c5_integrals(run_file: Path) -> dict:
+    """Per output time: ∫ |slip| dA and ∫ opening dA over all fracture faces (m³) and the mean λ_n
+    (Pa): mesh-independent measures that need no reference."""
+    a = np.load(run_file)
+    out = {}
+    for t in C5_TIMES:
+        tag = f"t{int(t)}"
+        A = a[f"{tag}_area"]
+        out[tag] = {"slip_integral": float(np.sum(A * a[f"{tag}_jump_t"])),
+                    "opening_integral": float(np.sum(A * np.maximum(-a[f"{tag}_jump_n"], 0.0))),
+                    "lambda_n_mean": float(np.sum(A * a[f"{tag}_lambda_n"]) / A.sum())}
+    return out
+
+
 def c5_compare(run_file: Path, ref_file: Path) -> dict:
     """Errors of a C5 run against the reference at each output time (see the module docstring)."""
     from scipy.spatial import cKDTree
@@ -282,19 +296,23 @@ def tables(result: dict) -> str:
         ref = next((r for r in c5 if r["reference"]), None)
         lines += ["### dfm-3d (C5, poromechanics)" + (f" against {ref['label']}" if ref else
                                                          " (no reference run: errors left out)"), "",
-                  "| variant | t | slip L2 | ∫ slip | opening L2 | ∫ opening | λ_n L2 | area in another state "
+                  "| variant | t | ∫ slip dA (1e-6 m³) | ∫ opening dA (1e-9 m³) | mean λ_n (MPa) | slip L2 | ∫ slip | "
+                  "opening L2 | ∫ opening | λ_n L2 | area in another state "
                   "(wrongly open / stuck) | faces open / stick / slip | unknowns | Newton | wall | peak | load |",
-                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+                  "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
         for r in c5:
             for tag in ("t50", "t100"):
                 c = (r.get("compare") or {}).get(tag, {})
-                f = c.get("faces") or {}
+                f = c.get("faces") or _faces_only(ROOT / r["faces_file"], tag)
                 cost = _cost(r) if tag == "t50" else " | | | | "
-                if r["reference"]:
-                    lines.append(f"| {r['label']} | {tag[1:]} s | – | – | – | – | – | – | "
+                g = (r.get("integrals") or {}).get(tag, {})
+                ints = (f"{1e6 * g.get('slip_integral', np.nan):.4g} | {1e9 * g.get('opening_integral', np.nan):.4g} | "
+                        f"{1e-6 * g.get('lambda_n_mean', np.nan):.4g}")
+                if r["reference"] or not c.get("slip_L2_rel"):
+                    lines.append(f"| {r['label']} | {tag[1:]} s | {ints} | – | – | – | – | – | – | "
                                  f"{f.get('open')} / {f.get('stick')} / {f.get('slip')} | {cost} |")
                     continue
-                lines.append(f"| {r['label']} | {tag[1:]} s | {_pc(c.get('slip_L2_rel'))} | "
+                lines.append(f"| {r['label']} | {tag[1:]} s | {ints} | {_pc(c.get('slip_L2_rel'))} | "
                              f"{_pc(c.get('slip_integral_total_rel'))} | {_pc(c.get('opening_L2_rel'))} | "
                              f"{_pc(c.get('opening_integral_total_rel'))} | {_pc(c.get('lambda_n_L2_rel'))} | "
                              f"{_pc(c.get('area_wrong_state'))} ({_pc(c.get('area_wrongly_open'))} / "
@@ -345,6 +363,8 @@ def main():
     runs = result["runs"]
     ref = next((r for r in runs if r["case"] == "dfm-3d" and r.get("reference") and "failed" not in r), None)
     for r in runs:
+        if r["case"] == "dfm-3d" and "failed" not in r:
+            r["integrals"] = c5_integrals(ROOT / r["faces_file"])
         if r["case"] == "dfm-3d" and "failed" not in r and ref is not None and not r.get("reference"):
             r["compare"] = c5_compare(ROOT / r["faces_file"], ROOT / ref["faces_file"])
         if r["case"] == "dfm-3d" and r.get("reference") and "failed" not in r:
