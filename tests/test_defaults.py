@@ -101,3 +101,14 @@ def test_the_summary_and_the_log_report_the_choices(tmp_path, cli, caplog):
     assert code == 0, err
     c = json.loads((out / "summary.json").read_text())["choices"]
     assert (c["order"], c["order_source"], c["bubbles"], c["bubbles_source"]) == (1, "given", "two-sided", "given")
+
+
+def test_the_resource_guard_foresees_the_quadratic_space(tmp_path):
+    from polypore.setup.limits import estimate
+
+    auto = estimate(_case(tmp_path, _tets()).spec)
+    p1 = estimate(_case(tmp_path, _tets(), ["mechanics.order=1"]).spec)
+    assert auto.cells == p1.cells and auto.unknowns > 3 * p1.unknowns and auto.memory > p1.memory
+    # no fractures: "auto" is order 1, the estimate that of order 1
+    assert estimate(_case(tmp_path, _tets(fractures=False)).spec).unknowns == pytest.approx(
+        estimate(_case(tmp_path, _tets(fractures=False), ["mechanics.order=1"]).spec).unknowns)
