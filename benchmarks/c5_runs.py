@@ -53,7 +53,7 @@ def main() -> int:
             if (out / "summary.json").exists() and not args.force:
                 print(f"{name}: skipped (summary.json exists; --force reruns)", flush=True)
                 continue
-            sets = [f"mesh.size={size:g}", f"mechanics.bubbles={bubbles}", f"solver.linear={args.linear}", *args.extra]
+            sets = [f"mesh.size={size:g}", "mechanics.order=1", f"mechanics.bubbles={bubbles}", f"solver.linear={args.linear}", *args.extra]
             cmd = [sys.executable, "-m", "polypore", "run", args.case, "--out", str(out), "--force"]
             cmd += [a for s in sets for a in ("--set", s)]
             if args.ranks > 1:

@@ -31,7 +31,7 @@ def main():
     ap.add_argument("--linear", default="auto")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
-    case = load_case("frictionless-3d", [f"mesh.size={args.size}", f"solver.linear={args.linear}"])
+    case = load_case("frictionless-3d", [f"mesh.size={args.size}", "mechanics.order=1", f"solver.linear={args.linear}"])
     t0 = time.perf_counter()
     fm = build_fractured_mesh(case)
     t1 = time.perf_counter()

@@ -20,10 +20,10 @@ from polypore.setup.casefile import load_case
 
 STUDIES = {
     # name: (case, overrides, levels)
-    "C1-tetra": ("frictionless-3d", ["mesh.size=0.5"], 4),
+    "C1-tetra": ("frictionless-3d", ["mesh.size=0.5", "mechanics.order=1"], 4),
     "C1-hexa": ("frictionless-3d", ["mesh.generator=cartesian", "mesh.cells=[4,4,4]"], 4),
     "C1-voronoi": ("frictionless-3d", ["mesh.generator=voronoi", "mesh.size=0.5"], 3),
-    "C1-tetra-2sided": ("frictionless-3d", ["mesh.size=0.5", "mechanics.bubbles=two-sided"], 4),
+    "C1-tetra-2sided": ("frictionless-3d", ["mesh.size=0.5", "mechanics.order=1", "mechanics.bubbles=two-sided"], 4),
     "C2-coulomb-2d": ("coulomb-2d", ["mesh.size=0.2"], 5),
     "C2-coulomb-2d-2sided": ("coulomb-2d", ["mesh.size=0.2", "mechanics.bubbles=two-sided"], 5),
     "C2-tresca-2d": ("tresca-2d", ["mesh.size=0.2"], 5),

@@ -61,10 +61,11 @@ from polypore.solvers.linear import have_pardiso
 
 RADIUS = 1.0          # a (m) in both built-in cases
 P2_GRADING = 0.5      # the order-2 series' mesh.grading (see the module docstring)
+P1_GRADING = 0.2      # the order-1 series' (the cases' own before order "auto", docs/defaults.md)
 # series: (case, overrides, displacement order), refined over the levels
-SERIES = {"pressurised": ("penny-pressurised", [], 1),
-          "inclined": ("penny-inclined", [], 1),
-          "general": ("penny-inclined", ["mesh.mirror=none"], 1),
+SERIES = {"pressurised": ("penny-pressurised", ["mechanics.order=1"], 1),
+          "inclined": ("penny-inclined", ["mechanics.order=1"], 1),
+          "general": ("penny-inclined", ["mesh.mirror=none", "mechanics.order=1"], 1),
           "pressurised-p2": ("penny-pressurised", ["mechanics.order=2"], 2),
           "inclined-p2": ("penny-inclined", ["mechanics.order=2"], 2),
           "general-p2": ("penny-inclined", ["mesh.mirror=none", "mechanics.order=2"], 2)}
@@ -94,6 +95,8 @@ def level_overrides(n: float, order: int = 1, similar: bool = False, p2_grading:
         ov.append(f"mesh.grading={2.0 / n:.10g}")
     elif order == 2:
         ov.append(f"mesh.grading={p2_grading:.10g}")
+    else:
+        ov.append(f"mesh.grading={P1_GRADING:.10g}")    # the cases' grading until they took 0.5 for P2
     return ov
 
 
@@ -321,7 +324,7 @@ def _extras(n, lo, sets, series) -> list[dict]:
                                                                "mesh.upper=[20, 20, 20]"]))
     out = []
     for case, order, label, ov in specs:
-        rec = run(case, lo(n, order) + ov + sets)
+        rec = run(case, lo(n, order) + [f"mechanics.order={order}"] + ov + sets)
         rec.pop("_faces")
         rec |= {"order": order, "level": n, "h": RADIUS / n, "label": label}
         out.append(rec)

@@ -74,7 +74,7 @@ def main() -> int:
 
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    case = load_case("dfm-3d", [f"mesh.size={args.size:g}", f"mechanics.bubbles={args.bubbles}",
+    case = load_case("dfm-3d", [f"mesh.size={args.size:g}", "mechanics.order=1", f"mechanics.bubbles={args.bubbles}",
                                 f"solver.linear={args.linear}"])
     t0 = time.perf_counter()
     fm = build_fractured_mesh(case)

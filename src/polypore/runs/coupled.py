@@ -196,6 +196,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                      "fracture_faces": net.n_faces, "multiplier_patches": model.mech.patches.summary(),
                      "unknowns": int(model.mech.free.size + model.mech.n_c * model.dim + model.flow_free.size)},
             **({"faults": faults} if faults is not None else {}),
+            "choices": ms.choices,
             "steps": steps,
             "energy_check": {"violations": violations, "steps_checked": len(energies)},
             "fracture_means": series,

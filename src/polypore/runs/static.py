@@ -96,6 +96,7 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
                      "fracture_faces": net.n_faces, "unknowns": unknowns(problem),
                      "h_max": float(g.cell_diameter.max())},
             **({"faults": faults} if faults is not None else {}),
+            "choices": setup.choices,
             "steps": [{"time": 0.0, "newton_iterations": st.newton_iterations, "residual": st.residual,
                        "open": int(np.sum(st.state == 0)), "stick": int(np.sum(st.state == 1)),
                        "slip": int(np.sum(st.state == 2)), "seconds": timings["solve"], "history": st.history}],

@@ -58,6 +58,25 @@ def _cell_value(name: str):
     return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
 
 
+ORDER_AUTO = "auto"
+
+
+def _order():
+    """``mechanics.order``: 1, 2 or "auto" (resolved on the mesh: setup/mechanics.py, ``resolve_order``)."""
+
+    def check(v):
+        if isinstance(v, str):
+            if v.strip() == ORDER_AUTO:
+                return ORDER_AUTO
+            fail(f"expected 1, 2 or \"auto\", got {show(v)}")
+        if isinstance(v, bool) or not is_number(v) or not finite(v) or int(v) != v or int(v) not in (1, 2):
+            fail(f"expected 1 (nodal + bubble space), 2 (quadratic, simplicial meshes) or \"auto\", got {show(v)}")
+        return int(v)
+
+    schema = {"anyOf": [{"type": "integer", "minimum": 1, "maximum": 2}, {"enum": [ORDER_AUTO]}]}
+    return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
+
+
 class Material(Table):
     """``[material]``: isotropic elasticity, E and ν or the Lamé parameters μ and λ.
 
@@ -148,18 +167,19 @@ def _zero(v) -> bool:
 class Mechanics(Table):
     """``[mechanics]``: discretisation options, loads, the Biot coefficient and boundary conditions."""
 
-    order: number(ge=1, le=2, integer=True) = Field(1, description="displacement space: 1 nodal + bubbles, 2 "
-                                                    "quadratic (simplicial meshes)")
+    order: _order() = Field("auto", description="displacement space: 1 nodal + face bubbles (any polytopal mesh), "
+                            "2 quadratic (triangles / tetrahedra only), or \"auto\": 2 on a 3D mesh of tetrahedra "
+                            "with fractures, else 1 (docs/defaults.md)")
     bubbles: choice("one-sided", "two-sided") = Field("one-sided", description="face bubbles on one or both "
                                                        "sides of each fracture")
     stabilisation: Positive = Field(1.0, description="scaling of the stabilisation")
     bubble_stabilisation: choice("face", "cell") = Field(
         "face", description="weight of the bubbles' stabilisation: face ((2μ + λ) |σ|²/|K|, robust on flat cells "
         "and fault slivers) or cell (h_K (2μ + λ), the scheme's; docs/contact_patches.md)")
-    nodal_stabilisation: choice("diameter", "thickness") = Field(
-        "diameter", description="length in the weight of the nodal stabilisation: diameter (h_K, the scheme's) or "
-        "thickness (h_K min(1, 4 t_K/h_K), t_K = |K|/largest face: softer on flat reservoir cells; "
-        "docs/contact_patches.md)")
+    nodal_stabilisation: choice("auto", "diameter", "thickness") = Field(
+        "auto", description="length in the weight of the nodal stabilisation: diameter (h_K, the scheme's), "
+        "thickness (h_K min(1, 4 t_K/h_K), t_K = |K|/largest face: softer on flat cells) or auto (thickness on "
+        "corner-point grids, diameter elsewhere; docs/contact_patches.md)")
     body_force: ExprVectorOrExact | None = Field(None, description="body force (N/m³), per component, or "
                                                  "\"exact\"")
     matrix_pressure: Expr | None = Field(None, description="p_m (Pa) of the Biot term −b p_m I")
