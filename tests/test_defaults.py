@@ -47,6 +47,30 @@ def _tets(fractures=True):
     return BOX_3D.format(generator="simplicial", sizes="size = 0.5", fractures=FRACTURE if fractures else "")
 
 
+@pytest.fixture
+def with_pardiso(monkeypatch):
+    """The auto rule as on an install with PARDISO (order 2 is taken with PARDISO only)."""
+    import polypore.solvers.linear as linear
+
+    monkeypatch.setattr(linear, "have_pardiso", lambda: True)
+
+
+def test_auto_order_is_1_without_pardiso(tmp_path, monkeypatch):
+    """Without PARDISO (the default install: SciPy's SuperLU), or with another solver.linear,
+    "auto" keeps order 1 on tetrahedra and says why: a quadratic 3D factorisation with SuperLU took
+    minutes per Newton iteration."""
+    import polypore.solvers.linear as linear
+
+    monkeypatch.setattr(linear, "have_pardiso", lambda: False)
+    case = _case(tmp_path, _tets())
+    order, why = resolve_order("auto", build_fractured_mesh(case), case.spec.model, "auto")
+    assert order == 1 and "no PARDISO" in why and "polypore[fast]" in why
+    monkeypatch.setattr(linear, "have_pardiso", lambda: True)
+    assert resolve_order("auto", build_fractured_mesh(case), None, "block-amg") == (
+        1, "auto: 3D tetrahedra with fractures, but solver.linear = 'block-amg' (order 2 is taken with PARDISO)")
+    assert resolve_order("auto", build_fractured_mesh(case), None, "pardiso")[0] == 2
+
+
 @pytest.mark.parametrize("text,order,reason", [
     (_tets(), 2, "auto: 3D mesh of tetrahedra with fractures"),
     (_tets(fractures=False), 1, "auto: no fractures"),
@@ -54,7 +78,7 @@ def _tets(fractures=True):
      "auto: polytopal mesh (P2 needs tetrahedra)"),
     (STATIC_2D, 1, "auto: 2D mesh"),
 ])
-def test_auto_order_picks_each_value(tmp_path, text, order, reason):
+def test_auto_order_picks_each_value(tmp_path, with_pardiso, text, order, reason):
     case = _case(tmp_path, text)
     assert case.spec.mechanics is None or case.spec.mechanics.order == "auto"
     fm = build_fractured_mesh(case)
@@ -81,7 +105,11 @@ def test_the_built_in_cases_that_set_the_order_keep_it():
     assert load_case("cube-slip-3d").spec.mechanics.order == 2
 
 
-def test_the_summary_and_the_log_report_the_choices(tmp_path, cli, caplog):
+def test_the_summary_and_the_log_report_the_choices(tmp_path, cli, caplog, monkeypatch):
+    import polypore.setup.mechanics as setup_mechanics
+
+    # the order rule as with PARDISO; this tiny system is solved by whatever is installed
+    monkeypatch.setattr(setup_mechanics, "pardiso_solves", lambda linear: True)
     (tmp_path / "c.toml").write_text(_tets())
     out = tmp_path / "o"
     with caplog.at_level("INFO", logger="polypore"):
@@ -103,7 +131,7 @@ def test_the_summary_and_the_log_report_the_choices(tmp_path, cli, caplog):
     assert (c["order"], c["order_source"], c["bubbles"], c["bubbles_source"]) == (1, "given", "two-sided", "given")
 
 
-def test_the_resource_guard_foresees_the_quadratic_space(tmp_path):
+def test_the_resource_guard_foresees_the_quadratic_space(tmp_path, with_pardiso):
     from polypore.setup.limits import estimate
 
     auto = estimate(_case(tmp_path, _tets()).spec)

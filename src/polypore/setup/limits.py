@@ -272,7 +272,11 @@ def _quadratic(spec, d: int) -> bool:
     order = spec.mechanics.order if spec.mechanics is not None else "auto"
     if order != "auto":
         return order == 2
-    return d == 3 and getattr(spec.mesh, "generator", None) == "simplicial" and bool(spec.fractures)
+    from ..solvers.linear import have_pardiso      # "auto" takes order 2 with PARDISO only
+
+    linear = spec.solver.linear if spec.solver is not None else "auto"
+    return (d == 3 and getattr(spec.mesh, "generator", None) == "simplicial" and bool(spec.fractures)
+            and linear in ("auto", "pardiso") and have_pardiso())
 
 
 def check_limits(spec, levels: int = 1, *, memory: float | None = None, max_steps: float | None = None,

@@ -47,6 +47,7 @@ from ..mesh import FracturedMesh
 from ..models.fracture_geometry import tip_distance
 from ..models.materials import check_elastic, lame
 from ..models.mechanics import ContactSpec, DisplacementBC, MechanicsData, TractionBC
+from ..solvers import linear as _linear
 from ..solvers.linear import LinearSolver
 from ..solvers.newton import NewtonOptions
 from .casefile import CaseFile
@@ -227,7 +228,7 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
     mu, lam = lame(E, nu)
     exact = _exact(spec, fm, params, E, nu, mu, lam)
     sec = spec.mechanics or Mechanics()
-    order, why = resolve_order(sec.order, fm, spec.model)
+    order, why = resolve_order(sec.order, fm, spec.model, (spec.solver or Solver()).linear)
     nodal, nodal_why = resolve_nodal_stabilisation(sec.nodal_stabilisation, spec.mesh.generator)
     choices = discretisation_choices(spec, sec, order, why, d)
     if order == 1:                      # the quadratic space has no stabilisation
@@ -272,7 +273,7 @@ def is_simplicial(mesh) -> bool:
     return bool(np.all(mesh.cell_nodes.counts == d + 1) and np.all(mesh.cell_faces.counts == d + 1))
 
 
-def resolve_order(order, fm: FracturedMesh, model: str | None = None) -> tuple[int, str]:
+def resolve_order(order, fm: FracturedMesh, model: str | None = None, linear: str | None = None) -> tuple[int, str]:
     """The displacement order of ``mechanics.order`` (1, 2 or "auto") on the mesh ``fm``, and why.
 
     "auto" takes the quadratic space (2) on 3D meshes of tetrahedra with fractures, for every model:
@@ -280,6 +281,12 @@ def resolve_order(order, fm: FracturedMesh, model: str | None = None) -> tuple[i
     (cube-slip-3d, penny-pressurised, penny-inclined, C5; docs/defaults.md). Elsewhere 1: P2 does
     not exist on polytopal meshes (Voronoi, Cartesian, corner-point grids), and 2D and meshes
     without fractures were not part of that study.
+
+    The study timed PARDISO. With SciPy's SuperLU, the only direct solver of the default
+    install, a quadratic 3D system fills in so much that one Newton iteration of penny-inclined
+    took 5 minutes instead of seconds (about 20 min for the case, against 50 s with order 1), and
+    the block solvers were not measured with P2: "auto" keeps order 1 unless the run's linear
+    solver is PARDISO (``linear``: solver.linear; None: not known, taken as the default "auto").
     """
     if order != ORDER_AUTO:
         return int(order), "given"
@@ -290,7 +297,18 @@ def resolve_order(order, fm: FracturedMesh, model: str | None = None) -> tuple[i
         return 1, "auto: polytopal mesh (P2 needs tetrahedra)"
     if fm.network.n_faces == 0:
         return 1, "auto: no fractures"
+    if not pardiso_solves(linear):
+        why = (f"solver.linear = {linear!r}" if linear not in (None, "auto", "pardiso") else
+               "no PARDISO: SciPy's SuperLU takes minutes per Newton iteration on quadratic 3D systems; "
+               "pip install 'polypore[fast]'")
+        return 1, f"auto: 3D tetrahedra with fractures, but {why} (order 2 is taken with PARDISO)"
     return 2, "auto: 3D mesh of tetrahedra with fractures"
+
+
+def pardiso_solves(linear: str | None) -> bool:
+    """Whether the run's linear systems go to PARDISO (solver.linear "auto" or "pardiso", pypardiso
+    installed)."""
+    return (linear in (None, "auto", "pardiso")) and _linear.have_pardiso()
 
 
 def resolve_nodal_stabilisation(value: str, generator: str | None) -> tuple[str, str]:
