@@ -1,6 +1,5 @@
 """3D mirror-symmetric meshing about planar fractures (``mesh.mirror = "fractures"``)."""
 
-import time
 
 import numpy as np
 import pytest
@@ -64,7 +63,6 @@ def _assert_conforming(mesh, fractures, volume):
 
 @pytest.mark.parametrize("tip_size", [None, 0.02])
 def test_cube_fault_prism_is_mirrored(tip_size):
-    t0 = time.perf_counter()
     mesh = simplicial_mesh([0, 0, 0], [1, 1, 1], [CUBE_FAULT], 0.3, fracture_size=0.12, tip_size=tip_size,
                            mirror="fractures")
     (prism,) = mirror_regions("fractures", [CUBE_FAULT], [0, 0, 0], [1, 1, 1], fracture_size=0.12)
@@ -80,7 +78,6 @@ def test_cube_fault_prism_is_mirrored(tip_size):
         g = mesh.geometry
         faces = fm.network.faces
         assert g.face_diameter[faces].min() < 0.3 * 0.12
-    assert time.perf_counter() - t0 < 20
 
 
 def test_two_fractures_and_a_penny_polygon():
@@ -178,7 +175,6 @@ def test_mirror_removes_the_lambda_n_scatter_of_a_sliding_penny_crack(tmp_path):
     path.write_text(PENNY)
     exact = 1.0e8 * np.sin(np.radians(20.0)) ** 2
     out = {}
-    t0 = time.perf_counter()
     for mirror in ("none", "fractures"):
         # the nodal + bubble space, whose defect the mirror removes (the default "auto" takes the
         # quadratic space on these tetrahedra, which has most of it gone already: docs/defaults.md)
@@ -194,4 +190,3 @@ def test_mirror_removes_the_lambda_n_scatter_of_a_sliding_penny_crack(tmp_path):
     assert open0 > 0 and min0 < 0.5 and scatter0 > 0.15           # the defect
     assert open1 == 0 and min1 > 0.8 and scatter1 < 0.05          # gone with the mirror
     assert scatter1 < 0.2 * scatter0
-    assert time.perf_counter() - t0 < 30
