@@ -106,10 +106,10 @@ def test_the_built_in_cases_that_set_the_order_keep_it():
 
 
 def test_the_summary_and_the_log_report_the_choices(tmp_path, cli, caplog, monkeypatch):
-    import polypore.setup.mechanics as setup_mechanics
+    import polypore.solvers.linear as linear_solvers
 
     # the order rule as with PARDISO; this tiny system is solved by whatever is installed
-    monkeypatch.setattr(setup_mechanics, "pardiso_solves", lambda linear: True)
+    monkeypatch.setattr(linear_solvers, "pardiso_solves", lambda linear: True)
     (tmp_path / "c.toml").write_text(_tets())
     out = tmp_path / "o"
     with caplog.at_level("INFO", logger="polypore"):

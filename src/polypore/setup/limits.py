@@ -272,11 +272,10 @@ def _quadratic(spec, d: int) -> bool:
     order = spec.mechanics.order if spec.mechanics is not None else "auto"
     if order != "auto":
         return order == 2
-    from ..solvers.linear import have_pardiso      # "auto" takes order 2 with PARDISO only
+    from ..solvers.linear import pardiso_solves      # "auto" takes order 2 with PARDISO only
 
-    linear = spec.solver.linear if spec.solver is not None else "auto"
     return (d == 3 and getattr(spec.mesh, "generator", None) == "simplicial" and bool(spec.fractures)
-            and linear in ("auto", "pardiso") and have_pardiso())
+            and pardiso_solves(spec.solver.linear if spec.solver is not None else None))
 
 
 def check_limits(spec, levels: int = 1, *, memory: float | None = None, max_steps: float | None = None,

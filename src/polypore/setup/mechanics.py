@@ -297,18 +297,13 @@ def resolve_order(order, fm: FracturedMesh, model: str | None = None, linear: st
         return 1, "auto: polytopal mesh (P2 needs tetrahedra)"
     if fm.network.n_faces == 0:
         return 1, "auto: no fractures"
-    if not pardiso_solves(linear):
+    if not _linear.pardiso_solves(linear):
         why = (f"solver.linear = {linear!r}" if linear not in (None, "auto", "pardiso") else
                "no PARDISO: SciPy's SuperLU takes minutes per Newton iteration on quadratic 3D systems; "
                "pip install 'polypore[fast]'")
         return 1, f"auto: 3D tetrahedra with fractures, but {why} (order 2 is taken with PARDISO)"
     return 2, "auto: 3D mesh of tetrahedra with fractures"
 
-
-def pardiso_solves(linear: str | None) -> bool:
-    """Whether the run's linear systems go to PARDISO (solver.linear "auto" or "pardiso", pypardiso
-    installed)."""
-    return (linear in (None, "auto", "pardiso")) and _linear.have_pardiso()
 
 
 def resolve_nodal_stabilisation(value: str, generator: str | None) -> tuple[str, str]:

@@ -80,6 +80,12 @@ def have_pardiso() -> bool:
     return True
 
 
+def pardiso_solves(linear: str | None) -> bool:
+    """Whether systems of a run with ``solver.linear = linear`` go to PARDISO ("auto" or "pardiso",
+    pypardiso installed; None: the default "auto")."""
+    return linear in (None, "auto", "pardiso") and have_pardiso()
+
+
 @dataclass
 class SolveStats:
     """Counters of one solver object: calls, seconds, Krylov iterations of the last solve."""
