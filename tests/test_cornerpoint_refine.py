@@ -160,7 +160,8 @@ def test_refine_too_many_cells(tmp_path):
 
 def test_refine_in_a_case_with_a_well(tmp_path):
     """mesh.refine in a grdecl case: faults named, keywords copied, the well [2, 3] layers [2, 3]
-    of the file's grid is the column of children at the old column's centre."""
+    of the file's grid is the children's columns around the old column's centre line (the middle
+    child for an odd factor, the two middle ones for an even factor): the well does not move."""
     from polypore.setup.flow import flow_setup, well_cells
     from polypore.setup.meshing import build_fractured_mesh, cornerpoint_of
     from test_cornerpoint_case import FLOW
@@ -179,12 +180,18 @@ def test_refine_in_a_case_with_a_well(tmp_path):
     grid, info = cornerpoint_of(fm.mesh)
     assert grid.dims == (18, 8, 6)
     cells = well_cells(fm.mesh, c.spec.flow.wells[0], "flow.wells.I1")
-    # old column (1, 2) (0-based) -> children i 3...5, j 4...5: centre child (4, 5); layers 2, 3 -> 3 ... 6
-    assert set(map(tuple, info.cell_ijk[cells])) == {(4, 5, k) for k in range(2, 6)}
+    # old column (1, 2) (0-based) -> children i 3...5, j 4...5: middle i 4, both j; layers 2, 3 -> 3 ... 6
+    assert set(map(tuple, info.cell_ijk[cells])) == {(4, j, k) for j in (4, 5) for k in range(2, 6)}
     fs = flow_setup(c, fm)
     geo = fm.mesh.geometry
     h = fs.cell_source(*geo.cell_centroid.T, 0.0)
-    assert np.isclose(np.sum(h * geo.cell_volume), 4.0 / 1000.0) and np.count_nonzero(h) == 4
+    assert np.isclose(np.sum(h * geo.cell_volume), 4.0 / 1000.0) and np.count_nonzero(h) == 8
+    # the source's centre in the map is the old well column's centre
+    old = well_cells(fm0.mesh, base.spec.flow.wells[0], "flow.wells.I1")
+    g0 = fm0.mesh.geometry
+    c0 = np.average(g0.cell_centroid[old, :2], axis=0, weights=g0.cell_volume[old])
+    c1 = np.average(geo.cell_centroid[:, :2], axis=0, weights=h * geo.cell_volume)
+    assert np.allclose(c1, c0, atol=1e-9 * 600.0)
     c = case(tmp_path, text, "mesh.refine=[3, 2, 2]", "flow.wells.I1.column=[7, 1]", name="s.toml")
     with pytest.raises(InputError, match=r"i in 1 \.\.\. 6") as e:     # the file's indices
         flow_setup(c, build_fractured_mesh(c))

@@ -463,9 +463,10 @@ def _exact(name, fm, data: FlowData, K, ap, cols, fvars):
 
 def well_cells(mesh, well, field: str) -> np.ndarray:
     """Mesh cells of a ``[[flow.wells]]`` block: its column (i, j) and layers k1...k2 (1-based, of
-    the grid as given: with ``mesh.refine`` the well is the column of children holding the old
-    column's centre, through all the children of its layers)."""
-    from ..mesh.cornerpoint.refine import centre_child, child_range
+    the grid as given: with ``mesh.refine`` the well is the middle child column, or for an even
+    factor the 2 (or 2 × 2) middle columns, around the old column's centre line, through all the
+    children of its layers, so that the well stays where it was)."""
+    from ..mesh.cornerpoint.refine import centre_children, child_range
     from .meshing import cornerpoint_refinement
 
     grid, info = _grid(mesh, f"{field}.column")
@@ -478,7 +479,7 @@ def well_cells(mesh, well, field: str) -> np.ndarray:
     if k2 > nz:
         raise InputError(f"{field}.layers", f"[{k1}, {k2}] goes below the grid's {nz} layers")
     K1, K2 = child_range(k1, k2, rk)
-    cells = info.cells_in(int(centre_child(i - 1, ri)), int(centre_child(j - 1, rj)), (K1 - 1, K2 - 1))
+    cells = info.cells_in(centre_children(i - 1, ri), centre_children(j - 1, rj), (K1 - 1, K2 - 1))
     if cells.size == 0:
         raise InputError(f"{field}.column", f"column [{i}, {j}], layers {k1} ... {k2}, has no active cell")
     return cells

@@ -156,10 +156,17 @@ def refine_grid(grid: CornerPointGrid, refine) -> CornerPointGrid:
                            _faults(grid.faults, r), props, f"{grid.source} refined {ri}×{rj}×{rk}")
 
 
-def centre_child(i, refine_factor: int):
-    """0-based index of the child holding the centre of old cell ``i`` (0-based) along a direction
-    refined by ``refine_factor`` (for an even factor, the upper of the two middle children)."""
-    return np.asarray(i) * refine_factor + refine_factor // 2
+def centre_children(i, refine_factor: int) -> tuple[int, int]:
+    """0-based inclusive range of the children whose closure holds the centre line of old cell
+    ``i`` (0-based) along a direction refined by ``refine_factor``: the middle child for an odd
+    factor, the two middle children for an even one (the centre lies on their common face).
+
+    A well through the centre of an old column then stays centred under refinement; taking one
+    of the two middle children instead moved it by a quarter of the old cell (25 m on
+    cornerpoint-injection, 7 % of its distance to the fault, the fault's overpressure +5 %).
+    """
+    lo = int(i) * refine_factor + (refine_factor - 1) // 2
+    return lo, int(i) * refine_factor + refine_factor // 2
 
 
 def child_range(first: int, last: int, refine_factor: int) -> tuple[int, int]:
