@@ -62,7 +62,10 @@ VARIANTS = {"default": ([], 0), "facewise": (["contact.patch_ratio=0"], 0),
             "cell": (["mechanics.bubble_stabilisation=cell"], 0),
             "cell-facewise": (["mechanics.bubble_stabilisation=cell", "contact.patch_ratio=0"], 0),
             "twosided-facewise": (["mechanics.bubbles=two-sided", "contact.patch_ratio=0"], 0),
-            "default-aligned": ([], BAND), "twosided-aligned": (["mechanics.bubbles=two-sided"], BAND)}
+            "default-aligned": ([], BAND), "twosided-aligned": (["mechanics.bubbles=two-sided"], BAND),
+            # the scale of the stabilisation (× the scheme's weight): its reaction enters the multipliers
+            "stab0.3": (["mechanics.stabilisation=0.3"], 0), "stab0.1": (["mechanics.stabilisation=0.1"], 0),
+            "stab3": (["mechanics.stabilisation=3"], 0)}
 FAULT = DisplacedFault(H, THROW, DIP)
 
 

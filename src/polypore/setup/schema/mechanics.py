@@ -164,6 +164,25 @@ def _zero(v) -> bool:
         return False
 
 
+STAB_AUTO = "auto"
+
+
+def _stabilisation():
+    """``mechanics.stabilisation``: a positive scale or "auto" (setup/mechanics.py, ``resolve_stabilisation``)."""
+
+    def check(v):
+        if isinstance(v, str):
+            if v.strip() == STAB_AUTO:
+                return STAB_AUTO
+            fail(f"expected a positive number or \"auto\", got {show(v)}")
+        if isinstance(v, bool) or not is_number(v) or not finite(v) or float(v) <= 0:
+            fail(f"expected a positive number (the scale of the stabilisation) or \"auto\", got {show(v)}")
+        return float(v)
+
+    schema = {"anyOf": [{"type": "number", "exclusiveMinimum": 0}, {"enum": [STAB_AUTO]}]}
+    return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
+
+
 class Mechanics(Table):
     """``[mechanics]``: discretisation options, loads, the Biot coefficient and boundary conditions."""
 
@@ -172,7 +191,9 @@ class Mechanics(Table):
                             "with fractures, else 1 (docs/defaults.md)")
     bubbles: choice("one-sided", "two-sided") = Field("one-sided", description="face bubbles on one or both "
                                                        "sides of each fracture")
-    stabilisation: Positive = Field(1.0, description="scaling of the stabilisation")
+    stabilisation: _stabilisation() = Field(
+        "auto", description="scale of the stabilisation (× the scheme's weights), or auto: 0.3 on corner-point "
+        "grids, 1 elsewhere (docs/contact_patches.md, \"The stabilisation's reaction\")")
     bubble_stabilisation: choice("face", "cell") = Field(
         "face", description="weight of the bubbles' stabilisation: face ((2μ + λ) |σ|²/|K|, robust on flat cells "
         "and fault slivers) or cell (h_K (2μ + λ), the scheme's; docs/contact_patches.md)")
