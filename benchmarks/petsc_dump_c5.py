@@ -39,17 +39,27 @@ class Recorder:
     def iterations(self):
         return getattr(self.inner, "iterations", self.inner.stats.iterations)
 
-    def solve(self, J, rhs):
+    @property
+    def takes_target(self):
+        """True: Newton's KrylovTarget (row weights, forcing term) is saved with the system and
+        passed on to an iterative inner solver (so the Newton path is the run's)."""
+        return True
+
+    def solve(self, J, rhs, target=None):
         self.k += 1
         tag = f"s{self.step:03d}_k{self.k:02d}"
         if self.step in self.save:
             sp.save_npz(self.out / f"J_{tag}.npz", sp.csr_matrix(J), compressed=False)
             np.save(self.out / f"rhs_{tag}.npy", np.asarray(rhs))
             np.save(self.out / f"pns_{tag}.npy", np.asarray(self.pressure_nullspace))
+            if target is not None and target.weights is not None:
+                np.save(self.out / f"w_{tag}.npy", np.asarray(target.weights))
+                np.save(self.out / f"eta_{tag}.npy", np.asarray(target.rtol))
         if hasattr(self.inner, "pressure_nullspace"):
             self.inner.pressure_nullspace = self.pressure_nullspace
         t0, c0 = time.perf_counter(), time.process_time()
-        x = self.inner.solve(J, rhs)
+        x = (self.inner.solve(J, rhs, target=target) if getattr(self.inner, "takes_target", False)
+             else self.inner.solve(J, rhs))
         its = self.iterations
         self.log.append({"tag": tag, "step": self.step, "newton": self.k, "saved": self.step in self.save,
                          "krylov": int(its[-1]) if its else None, "seconds": time.perf_counter() - t0,
