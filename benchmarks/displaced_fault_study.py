@@ -63,9 +63,10 @@ VARIANTS = {"default": ([], 0), "facewise": (["contact.patch_ratio=0"], 0),
             "cell-facewise": (["mechanics.bubble_stabilisation=cell", "contact.patch_ratio=0"], 0),
             "twosided-facewise": (["mechanics.bubbles=two-sided", "contact.patch_ratio=0"], 0),
             "default-aligned": ([], BAND), "twosided-aligned": (["mechanics.bubbles=two-sided"], BAND),
-            # the scale of the stabilisation (× the scheme's weight): its reaction enters the multipliers
-            "stab0.3": (["mechanics.stabilisation=0.3"], 0), "stab0.1": (["mechanics.stabilisation=0.1"], 0),
-            "stab3": (["mechanics.stabilisation=3"], 0)}
+            # the scale of the stabilisation (× the scheme's weights; the default on these grids is 0.3):
+            # its reaction enters the multipliers (setup/mechanics.py, resolve_stabilisation)
+            "scale1": (["mechanics.stabilisation=1"], 0), "scale0.1": (["mechanics.stabilisation=0.1"], 0),
+            "scale3": (["mechanics.stabilisation=3"], 0)}
 FAULT = DisplacedFault(H, THROW, DIP)
 
 
@@ -282,13 +283,15 @@ def main(argv=None):
     p.add_argument("--domain-halves", type=float, nargs="+", default=[2000.0, 4000.0, 8000.0])
     p.add_argument("--injection-level", type=int, default=2)
     p.add_argument("--out", default="docs")
+    p.add_argument("--stem", default="displaced_fault_study",
+                   help="name of the output files (docs/displaced_fault_scale: the stabilisation-scale study)")
     p.add_argument("--tables-only", action="store_true",
                    help="only write <out>/displaced_fault_study_tables.md from <out>/displaced_fault_study.json")
     a = p.parse_args(argv)
     out = Path(a.out)
     if a.tables_only:
-        result = json.loads((out / "displaced_fault_study.json").read_text())
-        (out / "displaced_fault_study_tables.md").write_text(markdown_tables(result))
+        result = json.loads((out / f"{args.stem}.json").read_text())
+        (out / f"{args.stem}_tables.md").write_text(markdown_tables(result))
         print(f"wrote {out}/displaced_fault_study_tables.md")
         return
     result = {"setup": {"thickness": H, "throw": THROW, "dip": DIP, "s0": S0, "ratio": RATIO, "core": CORE,
@@ -317,9 +320,9 @@ def main(argv=None):
                                         "rates": rates}
             result["runs"][name] = [{k2: (_short(v) if isinstance(v, np.ndarray) else v) for k2, v in r.items()}
                                     for r in runs]
-            profile_plot(out / f"displaced_fault_study_{name}.png", runs,
+            profile_plot(out / f"{args.stem}_{name}.png", runs,
                          f"displaced fault, {name}: face values (solid) vs reference face means (dotted)")
-        convergence_plot(out / "displaced_fault_study_convergence.png", table)
+        convergence_plot(out / f"{args.stem}_convergence.png", table)
 
         # domain effect: same cells near the fault, bigger slab
         dom = []
@@ -359,7 +362,7 @@ def main(argv=None):
                   f"{m['sn']['l2']:.4f}; Δτ L∞ {m['tau']['linf']:.4f} L2 {m['tau']['l2']:.4f}", flush=True)
             result["injection"] = {"level": a.injection_level, "states": r["states"], "metrics": m,
                                    "depletion_metrics": ref_dep}
-            profile_plot(out / "displaced_fault_study_injection.png", [r],
+            profile_plot(out / f"{args.stem}_injection.png", [r],
                          f"displaced fault, injection Δp = +10 MPa, h = {r['h']:g} m")
 
     # summary tables
@@ -377,8 +380,8 @@ def main(argv=None):
             print(f"  h={m['h']:g}: Δσ'_n " + " ".join(f"{pk['num_over_C']:+.2f}/{pk['ref_face_over_C']:+.2f}"
                                                     for pk in m["sn"]["peaks"])
                   + " | Δτ " + " ".join(f"{pk['num_over_C']:+.2f}/{pk['ref_face_over_C']:+.2f}" for pk in m["tau"]["peaks"]))
-    (out / "displaced_fault_study.json").write_text(json.dumps(result, indent=1))
-    (out / "displaced_fault_study_tables.md").write_text(markdown_tables(result))
+    (out / f"{args.stem}.json").write_text(json.dumps(result, indent=1))
+    (out / f"{args.stem}_tables.md").write_text(markdown_tables(result))
     print(f"wrote {out}/displaced_fault_study.json, displaced_fault_study_tables.md and PNGs")
 
 
