@@ -152,3 +152,26 @@ def test_nodal_stabilisation_auto_is_thickness_on_corner_point_grids_only():
     for gen in ("simplicial", "voronoi", "cartesian", "file"):
         assert resolve_nodal_stabilisation("auto", gen)[0] == "diameter"
     assert resolve_nodal_stabilisation("diameter", "grdecl") == ("diameter", "given")
+
+
+def test_stabilisation_auto_is_reduced_on_corner_point_grids_only(tmp_path):
+    """mechanics.stabilisation = "auto": 0.3 on corner-point grids, the scheme's 1 elsewhere; a given
+    number is kept; the run says which (log line and summary.json choices); bad values are refused
+    naming the key."""
+    from polypore.core.errors import InputError
+    from polypore.setup.casefile import load_case
+    from polypore.setup.mechanics import STAB_CORNERPOINT, mechanics_setup, resolve_stabilisation
+    from polypore.setup.meshing import build_fractured_mesh
+
+    assert resolve_stabilisation("auto", "grdecl") == (STAB_CORNERPOINT, "auto: corner-point grid")
+    assert resolve_stabilisation("auto", "cornerpoint")[0] == 0.3
+    for gen in ("simplicial", "voronoi", "cartesian", "file"):
+        assert resolve_stabilisation("auto", gen)[0] == 1.0
+    assert resolve_stabilisation(2.0, "grdecl") == (2.0, "given")
+    case = load_case("cornerpoint-injection", ["mesh.cells=[20, 10, 2]"])
+    ms = mechanics_setup(case, build_fractured_mesh(case))
+    assert ms.data.stabilisation == 0.3 and ms.choices["stabilisation"] == 0.3
+    for bad in ("0", "-1", '"huge"'):
+        with pytest.raises(InputError) as e:
+            load_case("cornerpoint-injection", [f"mechanics.stabilisation={bad}"])
+        assert e.value.field == "mechanics.stabilisation"
