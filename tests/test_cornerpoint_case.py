@@ -129,3 +129,12 @@ def test_builtin_case_runs(tmp_path):
     assert summary["case"] == "cornerpoint-injection" and set(summary["monitor"]) >= {"well", "fault"} or \
         summary["monitor"]
     assert (out / "solution.pvd").is_file() and (out / "fractures_0001.vtu").is_file()
+    # unknowns per block (issue 26): they add up to the run's unknowns; one pressure per cell,
+    # HFV face pressures, the fault's traces and faces, nodal displacements and one bubble per
+    # fault face (one-sided), 3 multipliers per patch
+    m = summary["mesh"]
+    b = m["blocks"]
+    assert sum(v for k, v in b.items() if k != "per_cell") == m["unknowns"]
+    assert b["pressure_cells"] == m["cells"] and b["multipliers"] == 3 * m["multiplier_patches"]["patches"]
+    assert 0 < b["displacement_bubbles"] <= 3 * m["fracture_faces"] and b["pressure_fractures"] == m["fracture_faces"]
+    assert b["per_cell"] == pytest.approx(m["unknowns"] / m["cells"], abs=1e-3)

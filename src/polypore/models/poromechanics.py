@@ -419,6 +419,22 @@ class Poromechanics:
         kind[d.edge] = 4
         self._flow_kind = kind[self.flow_free]
 
+    def block_counts(self) -> dict:
+        """Unknowns per block (summary.json ``mesh.blocks``): free displacement dofs at points
+        (nodes; with order 2 also edge points) and on face bubbles, multipliers (patches × d),
+        and the free pressures by equation kind (cells, faces, matrix–fracture traces, fracture
+        faces, fracture edges), plus the total per cell."""
+        mech, d = self.mech, self.dim
+        npt = mech.space.n_point_slots * d
+        k = np.bincount(self._flow_kind, minlength=5)
+        out = {"displacement_points": int(np.count_nonzero(mech.free < npt)),
+               "displacement_bubbles": int(np.count_nonzero(mech.free >= npt)),
+               "multipliers": int(mech.n_c * d),
+               "pressure_cells": int(k[0]), "pressure_faces": int(k[1]), "pressure_traces": int(k[2]),
+               "pressure_fractures": int(k[3]), "pressure_fracture_edges": int(k[4])}
+        out["per_cell"] = round(sum(out.values()) / max(self.fm.mesh.n_cells, 1), 3)
+        return out
+
     def pressure_scale(self, A_dt) -> np.ndarray:
         """(n_flow,) s in Pa/m with p = s p̃ per flow unknown: a symmetric diagonal scaling.
 
