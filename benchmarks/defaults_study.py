@@ -44,6 +44,7 @@ import argparse
 import csv
 import json
 import os
+import re
 import subprocess
 import sys
 import tempfile
@@ -140,9 +141,9 @@ def configs(quick: bool, c5_reference: bool = False) -> list[dict]:
         add("dfm-3d", f"size {size}, fracture_size {C5_REF_FRACTURE}, P1, one-sided", 1, "one-sided",
             extra=[f"mesh.size={size}", f"mesh.fracture_size={C5_REF_FRACTURE}", "mesh.grading=0.5"], level=size)
     if not quick and c5_reference:
-        # max_cuts 10: with the case's 4 halvings the step at t = 34 s (end of the ramp's sliding
-        # phase) failed at Δt = 0.125 s with its active sets cycling (2026-11-27, after 20 min)
-        add("dfm-3d", f"reference: size {size}, fracture_size {C5_REF_FRACTURE}, P2, two-sided", 2, "two-sided",
+        # one-sided P2 (the default's bubbles): the two-sided run stalled at t = 34 s with 4 and with
+        # 10 halvings of the step (Newton's active sets cycling; docs/defaults.md)
+        add("dfm-3d", f"reference: size {size}, fracture_size {C5_REF_FRACTURE}, P2, one-sided", 2, "one-sided",
             extra=[f"mesh.size={size}", f"mesh.fracture_size={C5_REF_FRACTURE}", "mesh.grading=0.5", "time.max_cuts=10"],
             level=size, ref=True)
     return out
@@ -183,6 +184,28 @@ def run(cfg: dict, keep: Path) -> dict:
                            + ".npz")
             np.savez_compressed(path, **_c5_faces(out / "fractures.csv"))
             rec["faces_file"] = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
+    return rec
+
+
+def imported(cfg: dict, folder: Path, keep: Path) -> dict:
+    """The record of a finished run folder (the C5 reference run by hand: it takes ~40 min)."""
+    s = json.loads((folder / "summary.json").read_text())
+    case = (folder / "case.toml").read_text()
+    for ov in cfg["overrides"]:                       # the folder must be the configuration's run
+        key, val = ov.split("=", 1)
+        leaf = key.split(".")[-1]
+        if not re.search(rf"^{re.escape(leaf)}\s*=\s*\"?{re.escape(val)}\"?\s*$", case, re.M):
+            raise SystemExit(f"{folder}: its case.toml does not have {ov}")
+    rec = {"unknowns": s["mesh"]["unknowns"], "cells": s["mesh"]["cells"], "fracture_faces": s["mesh"]["fracture_faces"],
+           "newton_iterations": int(sum(st["newton_iterations"] for st in s["steps"])), "steps": len(s["steps"]),
+           "seconds": s["totals"].get("seconds"), "seconds_solve": s["totals"].get("seconds"),
+           "peak_memory_mb": s["totals"].get("peak_memory_mb"), "load_average": [np.nan, np.nan],
+           "errors": {}, "choices": s.get("choices"), "imported_from": str(folder),
+           "final_states": {k: s["steps"][-1].get(k) for k in ("open", "stick", "slip")}}
+    keep.mkdir(parents=True, exist_ok=True)
+    path = keep / (cfg["key"].replace(" | ", "__").replace(" ", "_").replace(",", "").replace("/", "_") + ".npz")
+    np.savez_compressed(path, **_c5_faces(folder / "fractures.csv"))
+    rec["faces_file"] = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
     return rec
 
 
@@ -341,6 +364,9 @@ def main():
     ap.add_argument("--rerun", action="store_true", help="run configurations already in the JSON again")
     ap.add_argument("--c5-reference", action="store_true",
                     help="also the C5 reference run (order 2, two-sided, fracture faces 0.05: > 30 min)")
+    ap.add_argument("--reference-run", metavar="DIR", default=None,
+                    help="a finished `polypore run dfm-3d` folder with the C5 reference's overrides, taken as its "
+                         "run instead of running it (its summary.json gives the cost)")
     ap.add_argument("--keep", default=str(ROOT / "docs/defaults_study_c5"),
                     help="folder of the C5 fracture faces (.npz) per run")
     args = ap.parse_args()
@@ -348,6 +374,10 @@ def main():
     path = out / ("defaults_study_quick.json" if args.quick else "defaults_study.json")
     result = json.loads(path.read_text()) if path.exists() else {"runs": []}
     done = {r["key"]: r for r in result["runs"]}
+    if args.reference_run:
+        cfg = next(c for c in configs(args.quick, True) if c["reference"] and c["case"] == "dfm-3d")
+        done[cfg["key"]] = cfg | imported(cfg, Path(args.reference_run), Path(args.keep) / "full")
+        result["runs"] = list(done.values())
     if not args.report:
         only = {("cube-slip-3d" if c == "cube" else c) for c in (args.only or [])}
         todo = [c for c in configs(args.quick, args.c5_reference) if not only or c["case"] in only]
