@@ -180,7 +180,7 @@ def run(cfg: dict, keep: Path) -> dict:
                "final_states": {k: s["steps"][-1].get(k) for k in ("open", "stick", "slip")}}
         if cfg["case"] == "dfm-3d":
             keep.mkdir(parents=True, exist_ok=True)
-            path = keep / (cfg["key"].replace(" | ", "__").replace(" ", "_").replace(",", "").replace("/", "_")
+            path = keep / (cfg["key"].replace(" | ", "__").replace(" ", "_").replace(",", "").replace("/", "_").replace(":", "")
                            + ".npz")
             np.savez_compressed(path, **_c5_faces(out / "fractures.csv"))
             rec["faces_file"] = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
@@ -199,11 +199,11 @@ def imported(cfg: dict, folder: Path, keep: Path) -> dict:
     rec = {"unknowns": s["mesh"]["unknowns"], "cells": s["mesh"]["cells"], "fracture_faces": s["mesh"]["fracture_faces"],
            "newton_iterations": int(sum(st["newton_iterations"] for st in s["steps"])), "steps": len(s["steps"]),
            "seconds": s["totals"].get("seconds"), "seconds_solve": s["totals"].get("seconds"),
-           "peak_memory_mb": s["totals"].get("peak_memory_mb"), "load_average": [np.nan, np.nan],
+           "peak_memory_mb": s["totals"].get("peak_memory_mb"), "load_average": [np.nan, np.nan],   # not recorded
            "errors": {}, "choices": s.get("choices"), "imported_from": str(folder),
            "final_states": {k: s["steps"][-1].get(k) for k in ("open", "stick", "slip")}}
     keep.mkdir(parents=True, exist_ok=True)
-    path = keep / (cfg["key"].replace(" | ", "__").replace(" ", "_").replace(",", "").replace("/", "_") + ".npz")
+    path = keep / (cfg["key"].replace(" | ", "__").replace(" ", "_").replace(",", "").replace("/", "_").replace(":", "") + ".npz")
     np.savez_compressed(path, **_c5_faces(folder / "fractures.csv"))
     rec["faces_file"] = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
     return rec
@@ -287,7 +287,7 @@ def _pc(x, digits=1):
 def _cost(r):
     load = max(r["load_average"])
     return (f"{r['unknowns']:,} | {r['newton_iterations']} | {r['seconds']:.1f} s | "
-            f"{r['peak_memory_mb']:.0f} MB | {load:.1f}")
+            f"{r['peak_memory_mb']:.0f} MB | " + ("–" if not np.isfinite(load) else f"{load:.1f}"))
 
 
 def tables(result: dict) -> str:
