@@ -290,9 +290,9 @@ def main(argv=None):
     a = p.parse_args(argv)
     out = Path(a.out)
     if a.tables_only:
-        result = json.loads((out / f"{args.stem}.json").read_text())
-        (out / f"{args.stem}_tables.md").write_text(markdown_tables(result))
-        print(f"wrote {out}/displaced_fault_study_tables.md")
+        result = json.loads((out / f"{a.stem}.json").read_text())
+        (out / f"{a.stem}_tables.md").write_text(markdown_tables(result))
+        print(f"wrote {out}/{a.stem}_tables.md")
         return
     result = {"setup": {"thickness": H, "throw": THROW, "dip": DIP, "s0": S0, "ratio": RATIO, "core": CORE,
                         "corners_y": FAULT.corners_y.tolist(), "C": abs(scaling_factor(-1e7, ALPHA, NU))},
@@ -320,9 +320,9 @@ def main(argv=None):
                                         "rates": rates}
             result["runs"][name] = [{k2: (_short(v) if isinstance(v, np.ndarray) else v) for k2, v in r.items()}
                                     for r in runs]
-            profile_plot(out / f"{args.stem}_{name}.png", runs,
+            profile_plot(out / f"{a.stem}_{name}.png", runs,
                          f"displaced fault, {name}: face values (solid) vs reference face means (dotted)")
-        convergence_plot(out / f"{args.stem}_convergence.png", table)
+        convergence_plot(out / f"{a.stem}_convergence.png", table)
 
         # domain effect: same cells near the fault, bigger slab
         dom = []
@@ -362,7 +362,7 @@ def main(argv=None):
                   f"{m['sn']['l2']:.4f}; Δτ L∞ {m['tau']['linf']:.4f} L2 {m['tau']['l2']:.4f}", flush=True)
             result["injection"] = {"level": a.injection_level, "states": r["states"], "metrics": m,
                                    "depletion_metrics": ref_dep}
-            profile_plot(out / f"{args.stem}_injection.png", [r],
+            profile_plot(out / f"{a.stem}_injection.png", [r],
                          f"displaced fault, injection Δp = +10 MPa, h = {r['h']:g} m")
 
     # summary tables
@@ -380,8 +380,8 @@ def main(argv=None):
             print(f"  h={m['h']:g}: Δσ'_n " + " ".join(f"{pk['num_over_C']:+.2f}/{pk['ref_face_over_C']:+.2f}"
                                                     for pk in m["sn"]["peaks"])
                   + " | Δτ " + " ".join(f"{pk['num_over_C']:+.2f}/{pk['ref_face_over_C']:+.2f}" for pk in m["tau"]["peaks"]))
-    (out / f"{args.stem}.json").write_text(json.dumps(result, indent=1))
-    (out / f"{args.stem}_tables.md").write_text(markdown_tables(result))
+    (out / f"{a.stem}.json").write_text(json.dumps(result, indent=1))
+    (out / f"{a.stem}_tables.md").write_text(markdown_tables(result))
     print(f"wrote {out}/displaced_fault_study.json, displaced_fault_study_tables.md and PNGs")
 
 
