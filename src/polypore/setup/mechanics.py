@@ -337,7 +337,7 @@ def resolve_stabilisation(value, generator: str | None) -> tuple[float, str]:
     weights) elsewhere. At a fracture node the multipliers balance whatever the nodal rows carry,
     the stabilisation's reaction included: it vanishes on affine fields but not on the kinked
     fields of a poroelastic load, so it enters the fault tractions as an O(h) error proportional to
-    the scale. On the closed-form displaced fault (docs/displaced_fault_study.md) the scale 0.3
+    the scale. On the closed-form displaced fault (docs/displaced_fault_scale_tables.md) the scale 0.3
     lowers the L2 error of Δτ from 53 % to 20 % at h = 25 m and from 14 % to 5.9 % at 3.1 m (Δσ'_n
     18 → 7 %, 5.1 → 2.9 %), and L∞ Δτ from 5.4 to 2.9 %; 0.1 gains little more on L2 and loses on
     L∞ (9 % at 6.25 m: stability); on cornerpoint-injection's 100 m columns the fault's shear change
