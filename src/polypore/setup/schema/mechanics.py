@@ -58,23 +58,38 @@ def _cell_value(name: str):
     return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
 
 
-ORDER_AUTO = "auto"
+AUTO = "auto"
+ORDER_AUTO = AUTO
+
+
+def _number_or_auto(convert, number_schema: dict, words: str, short: str | None = None):
+    """A case key that is a number or "auto": ``convert(v)`` returns the number (or calls
+    ``fail`` naming what is allowed); ``words`` is what the key allows, for the error message
+    (``short``: the same, for a string that is not "auto")."""
+
+    def check(v):
+        if isinstance(v, str):
+            if v.strip() == AUTO:
+                return AUTO
+            fail(f"expected {short or words}, got {show(v)}")
+        if isinstance(v, bool) or not is_number(v) or not finite(v):
+            fail(f"expected {words}, got {show(v)}")
+        return convert(v)
+
+    schema = {"anyOf": [number_schema, {"enum": [AUTO]}]}
+    return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
 
 
 def _order():
     """``mechanics.order``: 1, 2 or "auto" (resolved on the mesh: setup/mechanics.py, ``resolve_order``)."""
+    words = "1 (nodal + bubble space), 2 (quadratic, simplicial meshes) or \"auto\""
 
-    def check(v):
-        if isinstance(v, str):
-            if v.strip() == ORDER_AUTO:
-                return ORDER_AUTO
-            fail(f"expected 1, 2 or \"auto\", got {show(v)}")
-        if isinstance(v, bool) or not is_number(v) or not finite(v) or int(v) != v or int(v) not in (1, 2):
-            fail(f"expected 1 (nodal + bubble space), 2 (quadratic, simplicial meshes) or \"auto\", got {show(v)}")
+    def convert(v):
+        if int(v) != v or int(v) not in (1, 2):
+            fail(f"expected {words}, got {show(v)}")
         return int(v)
 
-    schema = {"anyOf": [{"type": "integer", "minimum": 1, "maximum": 2}, {"enum": [ORDER_AUTO]}]}
-    return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
+    return _number_or_auto(convert, {"type": "integer", "minimum": 1, "maximum": 2}, words, "1, 2 or \"auto\"")
 
 
 class Material(Table):
@@ -164,23 +179,16 @@ def _zero(v) -> bool:
         return False
 
 
-STAB_AUTO = "auto"
-
-
 def _stabilisation():
     """``mechanics.stabilisation``: a positive scale or "auto" (setup/mechanics.py, ``resolve_stabilisation``)."""
+    words = "a positive number (the scale of the stabilisation) or \"auto\""
 
-    def check(v):
-        if isinstance(v, str):
-            if v.strip() == STAB_AUTO:
-                return STAB_AUTO
-            fail(f"expected a positive number or \"auto\", got {show(v)}")
-        if isinstance(v, bool) or not is_number(v) or not finite(v) or float(v) <= 0:
-            fail(f"expected a positive number (the scale of the stabilisation) or \"auto\", got {show(v)}")
+    def convert(v):
+        if float(v) <= 0:
+            fail(f"expected {words}, got {show(v)}")
         return float(v)
 
-    schema = {"anyOf": [{"type": "number", "exclusiveMinimum": 0}, {"enum": [STAB_AUTO]}]}
-    return Annotated[Any, PlainValidator(check), WithJsonSchema(schema)]
+    return _number_or_auto(convert, {"type": "number", "exclusiveMinimum": 0}, words)
 
 
 class Mechanics(Table):
