@@ -43,15 +43,15 @@ from __future__ import annotations
 import argparse
 import csv
 import json
-import os
 import re
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from childrun import polypore_run  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 FRACTURES = ("F1", "F2", "F3", "F4")
@@ -158,54 +158,41 @@ PENNY_ANISO = ["mesh.front=anisotropic", "mesh.fracture_size=0.2", "mesh.tip_siz
 def run(cfg: dict, keep: Path) -> dict:
     """One ``polypore run``: its summary's mesh, cost and errors; for dfm-3d the fracture faces at
     the output times (saved to ``keep``/<name>.npz)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "run"
-        cmd = [sys.executable, "-m", "polypore", "-q", "run", cfg["case"], "--out", str(out), "--force"]
-        for ov in cfg["overrides"]:
-            cmd += ["--set", ov]
-        load0 = os.getloadavg()[0]
-        t0 = time.perf_counter()
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        wall = time.perf_counter() - t0
-        load1 = os.getloadavg()[0]
-        if proc.returncode != 0:
-            return {"failed": proc.stderr[-2000:], "seconds": wall}
-        s = json.loads((out / "summary.json").read_text())
-        rec = {"unknowns": s["mesh"]["unknowns"], "cells": s["mesh"]["cells"],
-               "fracture_faces": s["mesh"]["fracture_faces"],
-               "newton_iterations": int(sum(st["newton_iterations"] for st in s["steps"])),
-               "steps": len(s["steps"]), "seconds": wall, "seconds_solve": s["totals"].get("seconds"),
-               "peak_memory_mb": s["totals"].get("peak_memory_mb"), "load_average": [load0, load1],
-               "errors": s.get("errors") or {}, "choices": s.get("choices"),
-               "final_states": {k: s["steps"][-1].get(k) for k in ("open", "stick", "slip")}}
-        if cfg["case"] == "dfm-3d":
-            keep.mkdir(parents=True, exist_ok=True)
-            path = keep / (cfg["key"].replace(" | ", "__").replace(" ", "_").replace(",", "").replace("/", "_").replace(":", "")
-                           + ".npz")
-            np.savez_compressed(path, **_c5_faces(out / "fractures.csv"))
-            rec["faces_file"] = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
-    return rec
+    with polypore_run(cfg["case"], cfg["overrides"]) as child:
+        if child.proc.returncode != 0:
+            return {"failed": child.proc.stderr[-2000:], "seconds": child.seconds}
+        return _record(cfg, child.out, keep, child.seconds, list(child.load_average))
 
 
 def imported(cfg: dict, folder: Path, keep: Path) -> dict:
     """The record of a finished run folder (the C5 reference run by hand: it takes ~40 min)."""
-    s = json.loads((folder / "summary.json").read_text())
     case = (folder / "case.toml").read_text()
     for ov in cfg["overrides"]:                       # the folder must be the configuration's run
         key, val = ov.split("=", 1)
         leaf = key.split(".")[-1]
         if not re.search(rf"^{re.escape(leaf)}\s*=\s*\"?{re.escape(val)}\"?\s*$", case, re.M):
             raise SystemExit(f"{folder}: its case.toml does not have {ov}")
-    rec = {"unknowns": s["mesh"]["unknowns"], "cells": s["mesh"]["cells"], "fracture_faces": s["mesh"]["fracture_faces"],
-           "newton_iterations": int(sum(st["newton_iterations"] for st in s["steps"])), "steps": len(s["steps"]),
-           "seconds": s["totals"].get("seconds"), "seconds_solve": s["totals"].get("seconds"),
-           "peak_memory_mb": s["totals"].get("peak_memory_mb"), "load_average": [np.nan, np.nan],   # not recorded
-           "errors": {}, "choices": s.get("choices"), "imported_from": str(folder),
+    s = json.loads((folder / "summary.json").read_text())
+    # wall time: the run's own total; the load average was not recorded
+    return _record(cfg, folder, keep, s["totals"].get("seconds"), [np.nan, np.nan]) | {"imported_from": str(folder)}
+
+
+def _record(cfg: dict, out: Path, keep: Path, wall: float, load: list) -> dict:
+    """A run's record from its folder: mesh, cost, errors, final states; dfm-3d: its faces file."""
+    s = json.loads((out / "summary.json").read_text())
+    rec = {"unknowns": s["mesh"]["unknowns"], "cells": s["mesh"]["cells"],
+           "fracture_faces": s["mesh"]["fracture_faces"],
+           "newton_iterations": int(sum(st["newton_iterations"] for st in s["steps"])),
+           "steps": len(s["steps"]), "seconds": wall, "seconds_solve": s["totals"].get("seconds"),
+           "peak_memory_mb": s["totals"].get("peak_memory_mb"), "load_average": load,
+           "errors": s.get("errors") or {}, "choices": s.get("choices"),
            "final_states": {k: s["steps"][-1].get(k) for k in ("open", "stick", "slip")}}
-    keep.mkdir(parents=True, exist_ok=True)
-    path = keep / (cfg["key"].replace(" | ", "__").replace(" ", "_").replace(",", "").replace("/", "_").replace(":", "") + ".npz")
-    np.savez_compressed(path, **_c5_faces(folder / "fractures.csv"))
-    rec["faces_file"] = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
+    if cfg["case"] == "dfm-3d":
+        keep.mkdir(parents=True, exist_ok=True)
+        name = cfg["key"].replace(" | ", "__").replace(" ", "_")
+        path = keep / (re.sub(r"[,/:]", lambda m: "_" if m.group() == "/" else "", name) + ".npz")
+        np.savez_compressed(path, **_c5_faces(out / "fractures.csv"))
+        rec["faces_file"] = str(path.relative_to(ROOT)) if path.is_relative_to(ROOT) else str(path)
     return rec
 
 

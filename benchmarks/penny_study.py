@@ -47,13 +47,14 @@ import argparse
 import csv
 import json
 import os
-import subprocess
 import sys
-import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from childrun import polypore_run  # noqa: E402
 
 import polypore
 from polypore.setup.casefile import load_case
@@ -110,21 +111,13 @@ def shear_overrides(nu: float, tau: float = 1.0e7) -> list[str]:
 
 def run(case: str, overrides: list[str]) -> dict:
     """One ``polypore run`` in a child process: its summary and per-face results (r/a, w, slip, λ_n, state)."""
-    with tempfile.TemporaryDirectory() as tmp:
-        out = Path(tmp) / "run"
-        cmd = [sys.executable, "-m", "polypore", "-q", "run", case, "--out", str(out), "--force"]
-        for ov in overrides:
-            cmd += ["--set", ov]
-        load0 = os.getloadavg()[0]
-        t0 = time.perf_counter()
-        proc = subprocess.run(cmd, capture_output=True, text=True)
-        wall = time.perf_counter() - t0
-        load1 = os.getloadavg()[0]
-        if proc.returncode != 0:
-            raise SystemExit(f"{case} {' '.join(overrides)} failed:\n{proc.stderr[-3000:]}")
-        summary = json.loads((out / "summary.json").read_text())
-        with open(out / "fractures.csv", newline="") as fh:
+    with polypore_run(case, overrides) as child:
+        if child.proc.returncode != 0:
+            raise SystemExit(f"{case} {' '.join(overrides)} failed:\n{child.proc.stderr[-3000:]}")
+        summary = json.loads((child.out / "summary.json").read_text())
+        with open(child.out / "fractures.csv", newline="") as fh:
             rows = list(csv.DictReader(fh))
+    wall, (load0, load1) = child.seconds, child.load_average
     c = load_case(case, overrides)
     crack = next(f for f in c.data["fractures"] if f["name"] == "crack")
     n = np.asarray(crack["normal"], float)
