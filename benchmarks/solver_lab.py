@@ -54,7 +54,7 @@ def method_block_amg(J, rhs, meta, pns, w=None, pressure="auto"):
     return x, s.iterations[-1]
 
 
-def method_blocks(J, rhs, meta, pns, w=None, u="amg", p="pardiso", stats=None):
+def method_blocks(J, rhs, meta, pns, w=None, u="amg", p="pardiso"):
     """The block preconditioner of BlockPoroSolver with a choice of inner solves: u "amg" (today's
     smoothed aggregation on the condensed S) or "exact" (PARDISO on S); p "pardiso" (Ŝ_p, today's
     default with the fast extra), "amg" or "exact-schur" (the pressure Schur complement
@@ -107,8 +107,6 @@ def method_blocks(J, rhs, meta, pns, w=None, u="amg", p="pardiso", stats=None):
 
     t1 = time.perf_counter()
     x = _gmres(J, rhs, apply, holder, KrylovTarget(w, RTOL[0]))
-    if stats is not None:
-        stats.update(setup=setup, krylov=time.perf_counter() - t1)
     print(f"      set-up {setup:.2f} s, Krylov {time.perf_counter() - t1:.2f} s", flush=True)
     return x, holder.iterations[-1]
 
