@@ -93,7 +93,8 @@ def main(argv=None) -> int:
     extra = {} if cp is None else {"cell_ijk": cp[1].cell_ijk}
     np.savez(out / "meta.npz", n_u=mech.free.size, d=model.dim, n_l=mech.n_c * model.dim, scale=cond.scale,
              normal=cond.normal, rho=cond.rho, near_nullspace=mech.rigid_modes(), cells=fm.mesh.n_cells,
-             cell_volume=fm.mesh.geometry.cell_volume, **extra)
+             cell_volume=fm.mesh.geometry.cell_volume,
+             flow_kind=model._flow_kind, **extra)
     rec = Recorder(model.solver, out, set(args.steps))
     model.solver = rec
     print(f"set up {fm.mesh.n_cells} cells, {model.n_unknowns} unknowns in {time.perf_counter() - t0:.1f} s",

@@ -92,6 +92,13 @@ def method_blocks(J, rhs, meta, pns, w=None, u="amg", p="pardiso"):
                                  M=spla.LinearOperator((n_p, n_p), matvec=lambda v: psf.solve(Fc, np.asarray(v, float)),
                                                        dtype=float))
             return x
+    elif p == "twolevel":
+        from polypore.solvers.pressure_twolevel import TwoLevelPressure
+
+        lump = np.asarray((Gpu @ sp.diags(1.0 / A.diagonal())).multiply(Gup.T).sum(axis=1)).ravel()
+        kind = meta["flow_kind"]
+        T = TwoLevelPressure(sp.csr_matrix(F - sp.diags(lump)), pns, np.isin(kind, (0, 3)), np.isin(kind, (2, 3, 4)))
+        sp_ = T.apply
     else:
         holder._p.method = "pardiso" if p == "pardiso" else "amg"
         holder._p.update(F, Gpu, Gup, A.diagonal(), pns)
@@ -117,6 +124,8 @@ METHODS = {"pardiso": method_pardiso, "block-amg": method_block_amg,
            "u-exact/p-pardiso": lambda *a: method_blocks(*a, u="exact", p="pardiso"),
            "u-exact/p-amg": lambda *a: method_blocks(*a, u="exact", p="amg"),
            "u-amg/p-amg": lambda *a: method_blocks(*a, u="amg", p="amg"),
+           "u-exact/p-twolevel": lambda *a: method_blocks(*a, u="exact", p="twolevel"),
+           "u-amg/p-twolevel": lambda *a: method_blocks(*a, u="amg", p="twolevel"),
            "u-exact/p-schur": lambda *a: method_blocks(*a, u="exact", p="exact-schur")}
 
 

@@ -714,6 +714,12 @@ class Poromechanics:
         if hasattr(self.solver, "pressure_nullspace"):
             # the AMG of the pressure Schur block needs the scaled image of a constant pressure
             self.solver.pressure_nullspace = 1.0 / sf
+        if hasattr(self.solver, "pressure_groups"):
+            # the two-level pressure preconditioner's coarse unknowns (cell and fracture-cell
+            # pressures) and the fracture subsystem its smoother solves exactly (fracture cells,
+            # fracture edges, traces); kinds as in block_counts
+            k = self._flow_kind
+            self.solver.pressure_groups = (np.isin(k, (0, 3)), np.isin(k, (2, 3, 4)))
         ar, ac = self._af_rc
         g_vals = (self._g_u[0] * sf[self._g_u[1]], self._g_p[0] * sf[self._g_p[1]])   # pressures scaled by s
         af_vals = local_rows(A_dt).data[self._af_keep] * sf[ar] * sf[ac]  # rows and columns scaled by s

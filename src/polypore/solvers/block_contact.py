@@ -54,7 +54,7 @@ from .timing import SPLIT
 
 log = logging.getLogger("polypore")
 
-PRESSURE_SOLVERS = ("auto", "pardiso", "amg")
+PRESSURE_SOLVERS = ("auto", "pardiso", "twolevel", "amg")
 
 
 def _amg(S, B=None):
@@ -257,12 +257,15 @@ class _PressureSolve:
         if method == "auto":
             from .linear import have_pardiso
 
-            method = "pardiso" if have_pardiso() else "amg"
+            method = "pardiso" if have_pardiso() else "twolevel"
         self.method = method
         self._key = None
         self.builds = 0
 
-    def update(self, F, Gpu, Gup, dA, B=None):
+    def update(self, F, Gpu, Gup, dA, B=None, groups=None):
+        """Rebuild for a new F. ``B`` the scaled constant (n_p,); ``groups`` (coarse, block) masks
+        (n_p,) bool for :class:`~.pressure_twolevel.TwoLevelPressure` (without them "twolevel"
+        falls back to smoothed aggregation on the whole block)."""
         key = (F.shape, F.nnz)
         if self._key is not None and self._key[0] == key and np.array_equal(self._key[1], F.data):
             return
@@ -278,6 +281,12 @@ class _PressureSolve:
             ps = self._ps = pypardiso.PyPardisoSolver()
             interruptible(ps.factorize, Sp)     # a signal stops the run mid-factorisation
             self.apply = lambda r: ps.solve(Sp, np.asarray(r, float))
+        elif self.method == "twolevel" and groups is not None:
+            from .pressure_twolevel import TwoLevelPressure
+
+            with repeatable_random():
+                T = TwoLevelPressure(Sp, B, groups[0], groups[1])
+            self.apply = T.apply
         else:
             sign = -1.0 if np.mean(Sp.diagonal()) < 0 else 1.0   # AMG wants a positive definite operator
             # B: the near-null space (a constant pressure in the scaled unknowns, 1/s); with
@@ -301,9 +310,13 @@ class BlockPoroSolver:
     ----------
     n_u, d, n_l : sizes of the displacement block, the multiplier block size, the multiplier count × d
     condensation : ContactCondensation
-    pressure : "auto" (PARDISO if installed, else AMG), "pardiso" or "amg": the Ŝ_p solve
+    pressure : "auto" (PARDISO if installed, else "twolevel"), "pardiso", "twolevel"
+        (:mod:`.pressure_twolevel`) or "amg" (smoothed aggregation on the whole block): the Ŝ_p solve
     pressure_nullspace : (n_p,) near-null space of Ŝ_p for its AMG (a constant pressure in the
         caller's scaled unknowns); set by the model before each step
+    pressure_groups : ((n_p,) bool, (n_p,) bool) or None: the unknowns spanning the two-level
+        coarse space (cell pressures) and those solved together in its smoother (the fracture
+        subsystem); set by the model
     """
 
     takes_target = True          # solve() accepts Newton's KrylovTarget (weights, forcing term)
@@ -313,6 +326,7 @@ class BlockPoroSolver:
     condensation: ContactCondensation
     near_nullspace: np.ndarray | None = None
     pressure_nullspace: np.ndarray | None = None
+    pressure_groups: tuple | None = None
     pressure: str = "auto"
     rtol: float = 1e-8
     maxiter: int = 400
@@ -335,7 +349,7 @@ class BlockPoroSolver:
             Cu, Cl = J[nu:po, :nu], J[nu:po, nu:po]
             Gpu, F = J[po:, :nu], J[po:, po:]
             Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
-            self._p.update(F, Gpu, Gup, A.diagonal(), self.pressure_nullspace)
+            self._p.update(F, Gpu, Gup, A.diagonal(), self.pressure_nullspace, self.pressure_groups)
             Mu, Mp = _amg(S, self.near_nullspace), self._p.apply
 
         def apply(r):
