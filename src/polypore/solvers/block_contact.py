@@ -302,8 +302,8 @@ class _PressureSolve:
 class BlockPoroSolver:
     """GMRES for the coupled step Jacobian [u, l, p] with a block lower-triangular preconditioner.
 
-    The (u, l) part is condensed as in :class:`BlockContactSolver` into S (AMG, rebuilt per
-    Newton iteration); the pressures use Ŝ_p (module docstring, factorised once per step).
+    The (u, l) part is condensed as in :class:`BlockContactSolver` into S (AMG, set up again only
+    when S changed); the pressures use Ŝ_p (module docstring, set up once per step).
     Apply: x_u = S⁻¹ (r_u − Bt Cl̂⁻¹ r_l), x_p = Ŝ_p⁻¹ (r_p − G_pu x_u), x_l = Cl̂⁻¹ (r_l − Cû x_u).
 
     Parameters
@@ -338,6 +338,20 @@ class BlockPoroSolver:
     def __post_init__(self):
         self._p = _PressureSolve(self.pressure)
 
+    def _mechanics_amg(self, S):
+        """The AMG of S, set up again only when S changed: the elastic block is constant and the
+        condensed contact rows change only with the faces' states and slip directions, so on
+        faults that stay stuck one set-up serves the whole run."""
+        S = sp.csr_matrix(S)
+        key = getattr(self, "_s_key", None)
+        if key is not None and key[0] == (S.shape, S.nnz) and np.array_equal(key[1], S.indices) \
+                and np.array_equal(key[2], S.data):
+            return self._s_amg
+        self._s_amg = _amg(S, self.near_nullspace)
+        self._s_key = ((S.shape, S.nnz), S.indices.copy(), S.data.copy())
+        self.mechanics_setups = getattr(self, "mechanics_setups", 0) + 1
+        return self._s_amg
+
     def solve(self, J, rhs, target=None) -> np.ndarray:
         """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
         t0 = time.perf_counter()
@@ -350,7 +364,7 @@ class BlockPoroSolver:
             Gpu, F = J[po:, :nu], J[po:, po:]
             Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
             self._p.update(F, Gpu, Gup, A.diagonal(), self.pressure_nullspace, self.pressure_groups)
-            Mu, Mp = _amg(S, self.near_nullspace), self._p.apply
+            Mu, Mp = self._mechanics_amg(S), self._p.apply
 
         def apply(r):
             ru, rl, rp = r[:nu], r[nu:po], r[po:]
