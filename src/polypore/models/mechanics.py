@@ -277,7 +277,11 @@ class ContactMechanics:
         self._setup_pattern(J)
         self.solver = solver or LinearSolver("auto")
         backend = getattr(self.solver, "backend", None)
-        if backend in ("block-amg", "block-petsc"):
+        if backend == "block-direct":
+            # block-direct factorises the mechanics block of the coupled system: a mechanics-only
+            # system (a model of its own, or the coupled model's initial state) is that block
+            self.solver = replace(self.solver, backend="auto")
+        elif backend in ("block-amg", "block-petsc"):
             self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8,
                                             petsc=backend == "block-petsc", options=self.solver.petsc_options)
         self.newton = newton or NewtonOptions(label="contact Newton")

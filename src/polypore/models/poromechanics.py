@@ -379,10 +379,11 @@ class Poromechanics:
         self.n_unknowns = n
         self._setup_scaling()
         backend = getattr(self.solver, "backend", None)
-        if backend == "block-amg":
+        if backend in ("block-amg", "block-direct"):
             from ..solvers.block_contact import BlockPoroSolver
 
-            self.solver = BlockPoroSolver(nfree, d, nl, self.mech.condensation(), near_nullspace=self.mech.rigid_modes())
+            self.solver = BlockPoroSolver(nfree, d, nl, self.mech.condensation(), near_nullspace=self.mech.rigid_modes(),
+                                          mechanics="direct" if backend == "block-direct" else "amg")
         elif backend == "block-petsc":
             from ..solvers.petsc_fieldsplit import PetscBlockPoroSolver
 

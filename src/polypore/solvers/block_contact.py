@@ -55,6 +55,36 @@ from .timing import SPLIT
 log = logging.getLogger("polypore")
 
 PRESSURE_SOLVERS = ("auto", "pardiso", "twolevel", "amg")
+MECHANICS_SOLVERS = ("amg", "direct")
+
+
+class _Factorised:
+    """S⁻¹ by a sparse LU of S (PARDISO when installed, else SuperLU), applied with ``@``."""
+
+    def __init__(self, S):
+        from .linear import have_pardiso
+
+        S = sp.csr_matrix(S)
+        if have_pardiso():
+            import pypardiso
+
+            ps = pypardiso.PyPardisoSolver()
+            interruptible(ps.factorize, S)
+            self._solve = lambda r: ps.solve(S, np.asarray(r, float))
+            self._free = lambda: ps.free_memory(everything=True)
+        else:
+            lu = interruptible(spla.splu, S.tocsc(), permc_spec="MMD_AT_PLUS_A")
+            self._solve = lambda r: lu.solve(np.asarray(r, float))
+            self._free = lambda: None
+
+    def __matmul__(self, r):
+        return self._solve(r)
+
+    def __del__(self):
+        try:
+            self._free()
+        except Exception:       # noqa: BLE001 - interpreter teardown
+            pass
 
 
 def _amg(S, B=None):
@@ -314,6 +344,8 @@ class BlockPoroSolver:
         (:mod:`.pressure_twolevel`) or "amg" (smoothed aggregation on the whole block): the Ŝ_p solve
     pressure_nullspace : (n_p,) near-null space of Ŝ_p for its AMG (a constant pressure in the
         caller's scaled unknowns); set by the model before each step
+    mechanics : "amg" (smoothed aggregation on S) or "direct" (S factorised: PARDISO when
+        installed, else SuperLU); ``solver.linear`` "block-amg" and "block-direct"
     pressure_groups : ((n_p,) bool, (n_p,) bool) or None: the unknowns spanning the two-level
         coarse space (cell pressures) and those solved together in its smoother (the fracture
         subsystem); set by the model
@@ -328,29 +360,38 @@ class BlockPoroSolver:
     pressure_nullspace: np.ndarray | None = None
     pressure_groups: tuple | None = None
     pressure: str = "auto"
+    mechanics: str = "amg"
     rtol: float = 1e-8
     maxiter: int = 400
     restart: int = 100
     accept_rtol: float = 1e-6
     iterations: list = field(default_factory=list)
     seconds: float = 0.0
+    mechanics_setups: int = 0
 
     def __post_init__(self):
+        if self.mechanics not in MECHANICS_SOLVERS:
+            raise ValueError(f"mechanics must be one of {MECHANICS_SOLVERS}, got {self.mechanics!r}")
         self._p = _PressureSolve(self.pressure)
 
-    def _mechanics_amg(self, S):
-        """The AMG of S, set up again only when S changed: the elastic block is constant and the
-        condensed contact rows change only with the faces' states and slip directions, so on
-        faults that stay stuck one set-up serves the whole run."""
+    def _mechanics_solve(self, S):
+        """S⁻¹ as an operator (``@``): AMG, or S factorised (``mechanics = "direct"``: PARDISO when
+        installed, else SuperLU). Set up again only when S changed: the elastic block is constant
+        and the condensed contact rows change only with the faces' states and slip directions, so
+        on faults that stay stuck one set-up serves the whole run."""
         S = sp.csr_matrix(S)
         key = getattr(self, "_s_key", None)
         if key is not None and key[0] == (S.shape, S.nnz) and np.array_equal(key[1], S.indices) \
                 and np.array_equal(key[2], S.data):
-            return self._s_amg
-        self._s_amg = _amg(S, self.near_nullspace)
+            return self._s_op
+        self._s_op = None                     # the old factors go before the new ones are made
+        if self.mechanics == "direct":
+            self._s_op = _Factorised(S)
+        else:
+            self._s_op = _amg(S, self.near_nullspace)
         self._s_key = ((S.shape, S.nnz), S.indices.copy(), S.data.copy())
-        self.mechanics_setups = getattr(self, "mechanics_setups", 0) + 1
-        return self._s_amg
+        self.mechanics_setups += 1
+        return self._s_op
 
     def solve(self, J, rhs, target=None) -> np.ndarray:
         """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
@@ -364,7 +405,7 @@ class BlockPoroSolver:
             Gpu, F = J[po:, :nu], J[po:, po:]
             Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
             self._p.update(F, Gpu, Gup, A.diagonal(), self.pressure_nullspace, self.pressure_groups)
-            Mu, Mp = self._mechanics_amg(S), self._p.apply
+            Mu, Mp = self._mechanics_solve(S), self._p.apply
 
         def apply(r):
             ru, rl, rp = r[:nu], r[nu:po], r[po:]
