@@ -68,9 +68,20 @@ class _Factorised:
         if have_pardiso():
             import pypardiso
 
-            ps = pypardiso.PyPardisoSolver()
-            interruptible(ps.factorize, S)
-            self._solve = lambda r: ps.solve(S, np.asarray(r, float))
+            # S is symmetric positive definite (module docstring): Cholesky-type factors on its
+            # upper triangle have half the entries of the unsymmetric LU and solve 25 % faster
+            # (emerald-injection: 6.4e6 against 1.2e7 entries). A solve skips pypardiso's check
+            # that the matrix is the factorised one (a comparison of every entry per call).
+            U = sp.triu(S, format="csr")
+            U.sort_indices()
+            ps = pypardiso.PyPardisoSolver(mtype=2)
+            interruptible(ps.factorize, U)
+
+            def solve(r):
+                ps.set_phase(33)
+                return ps._call_pardiso(U, np.asarray(r, float))
+
+            self._solve = solve
             self._free = lambda: ps.free_memory(everything=True)
         else:
             lu = interruptible(spla.splu, S.tocsc(), permc_spec="MMD_AT_PLUS_A")

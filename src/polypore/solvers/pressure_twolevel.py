@@ -31,6 +31,14 @@ import scipy.sparse.linalg as spla
 from .linear import repeatable_random
 
 
+class _Apply:
+    def __init__(self, f):
+        self._f = f
+
+    def __matmul__(self, r):
+        return self._f(r)
+
+
 class TwoLevelPressure:
     """The two-level preconditioner (module docstring) of one pressure operator.
 
@@ -42,11 +50,13 @@ class TwoLevelPressure:
     coarse : (n,) bool: the unknowns that span the coarse space (cell and fracture-cell pressures)
     block : (n,) bool or None: the unknowns solved exactly together in the smoother
         (fracture cells, fracture edges, traces)
+    theta : strength threshold of the coarse operator's smoothed aggregation
+    direct_coarse : coarse spaces up to this size are factorised (SuperLU) instead of AMG
 
     Use ``apply(r)`` (or ``@``): x ≈ M⁻¹ r, (n,).
     """
 
-    def __init__(self, M, constant=None, coarse=None, block=None, theta: float = 0.25):
+    def __init__(self, M, constant=None, coarse=None, block=None, theta: float = 0.25, direct_coarse: int = 20000):
         import pyamg
 
         M = sp.csr_matrix(M, dtype=float)
@@ -72,10 +82,17 @@ class TwoLevelPressure:
         Pk = Pk[np.argsort(perm)]
         # the coarse operator in the unscaled variables, coarse unknowns scaled to unit constant
         Ac = sp.csr_matrix(Pk.T @ K @ Pk)
-        with repeatable_random():
-            self._ml = pyamg.smoothed_aggregation_solver(Ac, strength=("symmetric", {"theta": theta}),
-                                                         max_coarse=500, coarse_solver="splu")
-        self._cycle = self._ml.aspreconditioner(cycle="V")
+        if C.size <= direct_coarse:
+            # a small cell problem factorises in milliseconds and solves 5× faster than a V-cycle
+            lu = spla.splu(Ac.tocsc())
+            self._cycle = _Apply(lu.solve)
+            self.levels = 1
+        else:
+            with repeatable_random():
+                ml = pyamg.smoothed_aggregation_solver(Ac, strength=("symmetric", {"theta": theta}),
+                                                       max_coarse=500, coarse_solver="splu")
+            self._cycle = ml.aspreconditioner(cycle="V")
+            self.levels = len(ml.levels)
         self._Pk = Pk
         self._c = c
         self.K = K
@@ -85,7 +102,6 @@ class TwoLevelPressure:
         self.n = n
         self.shape = (n, n)
         self.coarse_size = C.size
-        self.levels = len(self._ml.levels)
 
     def _gs(self, x, b, sweep):
         from pyamg.relaxation.relaxation import gauss_seidel
