@@ -375,7 +375,11 @@ class BlockPoroSolver:
     rtol: float = 1e-8
     maxiter: int = 400
     restart: int = 100
-    accept_rtol: float = 1e-6
+    # the coupled systems' round-off floor in Newton's weighted norm is higher than the contact
+    # ones': on the 30,000-cell generated corner-point grid PARDISO's own solution of the first
+    # Newton system has a relative residual of 3e-6, and GMRES stalled there for 400 iterations
+    # against 1e-6 (docs/iterative_cornerpoint.md)
+    accept_rtol: float = 1e-4
     iterations: list = field(default_factory=list)
     seconds: float = 0.0
     mechanics_setups: int = 0
