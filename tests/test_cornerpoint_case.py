@@ -138,3 +138,6 @@ def test_builtin_case_runs(tmp_path):
     assert b["pressure_cells"] == m["cells"] and b["multipliers"] == 3 * m["multiplier_patches"]["patches"]
     assert 0 < b["displacement_bubbles"] <= 3 * m["fracture_faces"] and b["pressure_fractures"] == m["fracture_faces"]
     assert b["per_cell"] == pytest.approx(m["unknowns"] / m["cells"], abs=1e-3)
+    # the linear solver "auto" chose, and why (a small grid: direct)
+    assert summary["choices"]["linear_solver"] in ("pardiso", "superlu")
+    assert summary["choices"]["linear_solver_source"].startswith("auto: about")

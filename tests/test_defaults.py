@@ -175,3 +175,24 @@ def test_stabilisation_auto_is_reduced_on_corner_point_grids_only(tmp_path):
         with pytest.raises(InputError) as e:
             load_case("cornerpoint-injection", [f"mechanics.stabilisation={bad}"])
         assert e.value.field == "mechanics.stabilisation"
+
+
+def test_auto_linear_solver_by_size_and_install():
+    """solver.linear = "auto" on coupled systems (setup/poromechanics.resolve_linear): direct up
+    to the measured sizes, then block-direct (PARDISO) or block-amg (default install); 2D and P2
+    stay direct; a given backend is kept."""
+    from types import SimpleNamespace
+
+    from polypore.setup.poromechanics import BLOCK_DIRECT_MIN, SUPERLU_MAX, resolve_linear
+
+    def fm(n, dim=3):          # d × nodes + cells + faces = n (nodes only)
+        return SimpleNamespace(mesh=SimpleNamespace(dim=dim, n_nodes=n // dim, n_cells=0, n_faces=0))
+
+    assert resolve_linear("auto", fm(60_000), 1, True)[0] == "pardiso"
+    assert resolve_linear("auto", fm(BLOCK_DIRECT_MIN + 3), 1, True)[0] == "block-direct"
+    assert resolve_linear("auto", fm(SUPERLU_MAX), 1, False)[0] == "superlu"
+    choice, why = resolve_linear("auto", fm(60_000), 1, False)
+    assert choice == "block-amg" and "60,000" in why and "polypore[fast]" in why
+    assert resolve_linear("auto", fm(10**6), 2, True)[0] == "pardiso"        # P2: direct
+    assert resolve_linear("auto", fm(10**6, dim=2), 1, False)[0] == "superlu"
+    assert resolve_linear("superlu", fm(10**6), 1, True) == ("superlu", "given")

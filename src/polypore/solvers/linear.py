@@ -18,7 +18,8 @@ Backends
 ``block-petsc`` the block preconditioners of ``block-amg`` in PETSc (multipliers condensed by
              polypore, :mod:`.petsc_condensed`, or PCFIELDSPLIT, :mod:`.petsc_fieldsplit`); the
              model builds it.
-``auto``     pardiso if installed, else superlu.
+``auto``     pardiso if installed, else superlu; for coupled 3D systems the setup may pick a block
+             solver instead (:func:`polypore.setup.poromechanics.resolve_linear`).
 
 In Newton's loops only the block backends take per-iteration targets (row weights and the
 Eisenstat–Walker forcing term, :mod:`.newton`); ``rtol`` is then their tolerance outside Newton
