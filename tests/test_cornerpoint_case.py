@@ -141,3 +141,22 @@ def test_builtin_case_runs(tmp_path):
     # the linear solver "auto" chose, and why (a small grid: direct)
     assert summary["choices"]["linear_solver"] in ("pardiso", "superlu")
     assert summary["choices"]["linear_solver_source"].startswith("auto: about")
+
+
+def test_generated_layer_permeability(tmp_path):
+    """mesh.layer_permeability: PERMX = PERMY per layer from the top, repeated down the stack,
+    PERMZ a tenth; a bad value names the key."""
+    from polypore.mesh.cornerpoint import generate_grid
+
+    g = generate_grid(2, 2, 5, layer_permeability=[1000.0, 0.001])
+    assert g.properties["PERMX"][0, 0].tolist() == [1000.0, 0.001, 1000.0, 0.001, 1000.0]
+    assert np.array_equal(g.properties["PERMZ"], 0.1 * g.properties["PERMY"])
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import build_fractured_mesh
+
+    case = load_case("cornerpoint-injection", ["mesh.layer_permeability=[1000.0, 1e-3]"])
+    fm = build_fractured_mesh(case)
+    assert fm.mesh.n_cells == 1600
+    with pytest.raises(Exception) as e:
+        load_case("cornerpoint-injection", ["mesh.layer_permeability=[100.0, -1.0]"])
+    assert "layer_permeability" in str(e.value) and "-1.0" in str(e.value)

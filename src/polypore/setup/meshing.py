@@ -345,7 +345,8 @@ def _cornerpoint_grid(spec):
                             stop=None if f.stop is None else int(f.stop), name=f.name) for f in m.faults]
         grid = generate_grid(nx, ny, nz, extent=tuple(m.extent), top=m.top, dip=m.dip, faults=faults,
                              pinchout=[int(k) - 1 for k in (m.pinchout or [])], inactive=m.inactive, seed=m.seed,
-                             pillar_angle=float(m.pillar_angle))
+                             pillar_angle=float(m.pillar_angle),
+                             layer_permeability=None if m.layer_permeability is None else list(m.layer_permeability))
     return refine_grid(grid, m.refine)
 
 

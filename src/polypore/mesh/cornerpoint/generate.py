@@ -69,7 +69,8 @@ def _throw_profile(f: FaultSpec, n_along: int) -> tuple[np.ndarray, int, int]:
 def generate_grid(nx: int, ny: int, nz: int, extent=(1000.0, 1000.0, 100.0), *, top: float = 1000.0,
                   dip: float = 0.0, faults=(), pinchout=(), pinch_range=(0.25, 0.5), inactive=0.0,
                   seed: int = 0, left_handed: bool = False, pillar_tilt: float = 0.0,
-                  pillar_angle: float | None = None, mapaxes=None, properties: bool = True) -> CornerPointGrid:
+                  pillar_angle: float | None = None, mapaxes=None, properties: bool = True,
+                  layer_permeability=None) -> CornerPointGrid:
     """A faulted corner-point grid.
 
     Parameters
@@ -93,6 +94,9 @@ def generate_grid(nx: int, ny: int, nz: int, extent=(1000.0, 1000.0, 100.0), *, 
     pillar_tilt : float
         Pillars fan out: the bottom of the pillar at x is shifted by pillar_tilt·(x − Lx/2)
         along x (non-parallel pillars, non-planar faces).
+    layer_permeability : sequence of float, mD, optional
+        PERMX = PERMY of the layers from the top, repeated when nz is larger; PERMZ a tenth
+        (default 100 mD everywhere).
     pillar_angle : float, degrees, optional
         Instead of ``pillar_tilt``: the angle from vertical of the outermost pillars (x = 0
         and x = Lx), 0 ≤ pillar_angle < 90. Every pillar runs from 1 m above the shallowest
@@ -175,9 +179,13 @@ def generate_grid(nx: int, ny: int, nz: int, extent=(1000.0, 1000.0, 100.0), *, 
     props = {}
     if properties:
         k3 = np.broadcast_to(np.arange(nz)[None, None, :], (nx, ny, nz))
+        kh = np.full((nx, ny, nz), 100.0)
+        if layer_permeability is not None:
+            lp = np.asarray(layer_permeability, float)
+            kh = np.broadcast_to(lp[np.arange(nz) % lp.size][None, None, :], (nx, ny, nz)).copy()
         props = {"PORO": np.full((nx, ny, nz), 0.2), "NTG": np.ones((nx, ny, nz)),
-                 "PERMX": np.full((nx, ny, nz), 100.0), "PERMY": np.full((nx, ny, nz), 100.0),
-                 "PERMZ": np.full((nx, ny, nz), 10.0), "FIPNUM": (k3 + 1).astype(float)}
+                 "PERMX": kh, "PERMY": kh.copy(),
+                 "PERMZ": 0.1 * kh, "FIPNUM": (k3 + 1).astype(float)}
     if left_handed:
         coord = coord[:, ::-1].copy()
         zcorn = zcorn[:, ::-1].copy()

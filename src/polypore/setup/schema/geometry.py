@@ -25,7 +25,7 @@ GENERATOR_KEYS = {
     "file": {"file"},
     "grdecl": {"file", "nonplanar", "region_keyword", "snap", "refine"},
     "cornerpoint": {"cells", "extent", "top", "dip", "faults", "pinchout", "pillar_angle", "inactive", "seed",
-                    "nonplanar",
+                    "layer_permeability", "nonplanar",
                     "region_keyword", "snap", "refine"},
 }
 Coordinates = vector((2, 3), "coordinates (m)")
@@ -107,6 +107,9 @@ class Mesh(Table):
                                               "the tangent of their angle linear in x (0: vertical pillars; "
                                               "docs/cornerpoint.md)")
     inactive: number(ge=0, lt=1) = Field(0.0, description="cornerpoint: fraction of randomly inactive cells")
+    layer_permeability: vector(None, "permeabilities (mD)") | None = Field(
+        None, description="cornerpoint: PERMX = PERMY of the layers from the top (mD), repeated down the stack when "
+                          "there are more layers; PERMZ a tenth of it (default 100 mD everywhere)")
 
     @model_validator(mode="after")
     def _generator_keys(self):
@@ -171,6 +174,12 @@ class Mesh(Table):
         for v in self.pinchout or []:
             if int(v) != v or not 1 <= v <= nz:
                 fail(f"must be layer numbers 1 ... {nz} (1-based), got {self.pinchout}", key="pinchout")
+        for v in self.layer_permeability or []:
+            if not 0 < v <= 1e9:
+                fail(f"must be permeabilities in mD, each > 0 and ≤ 1e9, got {self.layer_permeability}",
+                     key="layer_permeability")
+        if self.layer_permeability is not None and len(self.layer_permeability) == 0:
+            fail("must list at least one permeability (mD)", key="layer_permeability")
         seen = set()
         for i, f in enumerate(self.faults):
             n = int(self.cells[0 if f.axis == "i" else 1])
