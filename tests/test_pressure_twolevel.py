@@ -53,3 +53,35 @@ def test_two_level_pressure_converges_where_aggregation_fails():
     its_sa, res_sa = _cg_iterations(-S, ml.aspreconditioner(), b)
     print("aggregation", its_sa, res_sa)
     assert its_sa > 3 * its
+
+
+def test_line_smoothed_amg_on_flat_cells_is_symmetric_and_needs_fewer_iterations():
+    """solvers/line_smoother.py on the condensed displacement block of a corner-point model
+    (flat cells): lines found from S alone, a symmetric preconditioner, fewer PCG iterations than
+    smoothed aggregation alone."""
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import build_fractured_mesh
+    from polypore.setup.poromechanics import poro_setup
+    from polypore.solvers.block_contact import _amg
+    from polypore.solvers.line_smoother import LineSmoothedAMG
+
+    # 100 m columns of 5 m layers (aspect 20, Emerald's is ~40)
+    case = load_case("cornerpoint-injection", ["mesh.cells=[20, 10, 32]", "flow.wells.I1.layers=[9, 24]"])
+    model, fs, _ = poro_setup(case, build_fractured_mesh(case))
+    st = model.initial_state(fs.initial_pressure)
+    ctx, x0 = model.step_context(st, 86400.0, 86400.0)
+    J = sp.csr_matrix(model._linearise(x0, ctx).jacobian)
+    nu = model.mech.free.size
+    po = nu + model.mech.n_c * model.dim
+    _, _, S = model.mech.condensation().condense(J[:nu, :nu], J[:nu, nu:po], J[nu:po, :nu], J[nu:po, nu:po])
+    B = model.mech.rigid_modes()
+    M = LineSmoothedAMG(S, B, _amg)
+    assert M.n_lines < np.unique(M.node).size and M.line_length.max() >= 4      # columns, not points
+    u, v = np.random.default_rng(1).standard_normal((2, S.shape[0]))
+    assert abs(u @ (M @ v) - v @ (M @ u)) <= 1e-10 * abs(u @ (M @ v))
+    b = np.random.default_rng(0).standard_normal(S.shape[0])
+    its_line, res_line = _cg_iterations(S, lambda r: M @ r, b)
+    plain = _amg(S, B)
+    its_plain, _ = _cg_iterations(S, lambda r: plain @ r, b)
+    print("line", its_line, "plain", its_plain)
+    assert res_line < 1e-8 and its_line < 0.8 * its_plain

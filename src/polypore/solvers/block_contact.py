@@ -400,10 +400,18 @@ class BlockPoroSolver:
                 and np.array_equal(key[2], S.data):
             return self._s_op
         self._s_op = None                     # the old factors go before the new ones are made
+        B = self.near_nullspace
         if self.mechanics == "direct":
             self._s_op = _Factorised(S)
+        elif B is not None and np.ndim(B) == 2 and B.shape[1] == 6:
+            # 3D: line Gauss–Seidel around the V-cycle (line_smoother.py): on flat cells the
+            # point smoothers miss the short edges' direction (PCG on emerald's S: 176 -> 101)
+            from .line_smoother import LineSmoothedAMG
+
+            with repeatable_random():
+                self._s_op = LineSmoothedAMG(S, B, _amg)
         else:
-            self._s_op = _amg(S, self.near_nullspace)
+            self._s_op = _amg(S, B)
         self._s_key = ((S.shape, S.nnz), S.indices.copy(), S.data.copy())
         self.mechanics_setups += 1
         return self._s_op
