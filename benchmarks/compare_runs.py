@@ -45,7 +45,9 @@ def main(argv=None) -> int:
             d = np.abs(fa[key] - fb[key]).max()
             ref = np.abs(fa[key]).max()
             scale = 1e-6 if unit == "MPa" else 1e3
-            print(f"max |Δ{key}| = {d * scale:.3g} {unit} ({d / ref if ref else 0:.1e} of the largest |{key}| in A)")
+            rel = (f"{d / ref:.1e} of the largest |{key}| in A" if ref * scale > 1e-6
+                   else f"A's largest |{key}| is {ref * scale:.1g} {unit}")
+            print(f"max |Δ{key}| = {d * scale:.3g} {unit} ({rel})")
     for f in (a, b):
         t = json.loads((f / "summary.json").read_text())["totals"]
         print(f"{f.name}: {t.get('linear_solver')}: {t['seconds']:.1f} s wall, linear solves {t['seconds_linear']:.1f} s, "
