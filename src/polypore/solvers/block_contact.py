@@ -32,8 +32,10 @@ replaced by the fixed-stress-type diagonal approximation
     Ŝ_p = F − diag(Σ_j G_pu,ij G_up,ji / A_jj),
 
 which keeps F's sparsity (the full product couples every pair of cells sharing a node and
-costs 10× more to factorise) and does not depend on the contact state: it is factorised once
-per time step (PARDISO when installed, AMG otherwise) and reused by every Newton iteration.
+costs 10× more to factorise) and does not depend on the contact state: it is set up once per time
+step (PARDISO when installed, else the two-level preconditioner of :mod:`.pressure_twolevel`) and
+reused by every Newton iteration. S is solved by AMG (``mechanics = "amg"``, 3D with the line
+smoother of :mod:`.line_smoother`) or factorised (``"direct"``), set up again only when it changed.
 """
 
 from __future__ import annotations
@@ -388,6 +390,7 @@ class BlockPoroSolver:
         if self.mechanics not in MECHANICS_SOLVERS:
             raise ValueError(f"mechanics must be one of {MECHANICS_SOLVERS}, got {self.mechanics!r}")
         self._p = _PressureSolve(self.pressure)
+        self._s_key = self._s_op = None
 
     def _mechanics_solve(self, S):
         """S⁻¹ as an operator (``@``): AMG, or S factorised (``mechanics = "direct"``: PARDISO when
@@ -395,7 +398,7 @@ class BlockPoroSolver:
         and the condensed contact rows change only with the faces' states and slip directions, so
         on faults that stay stuck one set-up serves the whole run."""
         S = sp.csr_matrix(S)
-        key = getattr(self, "_s_key", None)
+        key = self._s_key
         if key is not None and key[0] == (S.shape, S.nnz) and np.array_equal(key[1], S.indices) \
                 and np.array_equal(key[2], S.data):
             return self._s_op
