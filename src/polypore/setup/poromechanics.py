@@ -40,8 +40,8 @@ def resolve_linear(linear: str, fm, order: int, pardiso: bool) -> tuple[str, str
 
     "auto" is the direct solver (PARDISO when installed, else SuperLU) except on 3D systems of
     order 1 that are large for it: with PARDISO from about BLOCK_DIRECT_MIN unknowns
-    "block-direct" (PARDISO on the condensed displacement block, the two-level pressure
-    preconditioner, GMRES), without PARDISO from about SUPERLU_MAX unknowns "block-amg" (AMG on
+    "block-direct" (PARDISO on the condensed displacement block and on the fixed-stress pressure
+    block, GMRES around them), without PARDISO from about SUPERLU_MAX unknowns "block-amg" (AMG on
     that block instead). The P2 systems stay direct: the block solvers were not measured on them.
     """
     if linear != "auto":
@@ -55,8 +55,8 @@ def resolve_linear(linear: str, fm, order: int, pardiso: bool) -> tuple[str, str
         return direct, "auto: direct" + (" (2D)" if fm.mesh.dim != 3 else " (quadratic displacements)")
     n = estimated_unknowns(fm)
     if pardiso and n >= BLOCK_DIRECT_MIN:
-        return "block-direct", (f"auto: about {n:,} unknowns; PARDISO on the displacement block with the two-level "
-                                "pressure preconditioner is faster and smaller than PARDISO on the whole system "
+        return "block-direct", (f"auto: about {n:,} unknowns; PARDISO on the displacement and pressure blocks "
+                                "with GMRES around them is faster and smaller than PARDISO on the whole system "
                                 "from about {:,}".format(BLOCK_DIRECT_MIN))
     if not pardiso and n > SUPERLU_MAX:
         return "block-amg", (f"auto: about {n:,} unknowns and no PARDISO: SciPy's SuperLU would take minutes and "
