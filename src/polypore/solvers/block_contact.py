@@ -321,9 +321,18 @@ class _PressureSolve:
                 # release the previous step's factors: PARDISO keeps them until told (without
                 # this, peak memory grew to 11 GB over C5's 50 steps at 46k cells)
                 self._ps.free_memory(everything=True)
-            ps = self._ps = pypardiso.PyPardisoSolver()
-            interruptible(ps.factorize, Sp)     # a signal stops the run mid-factorisation
-            self.apply = lambda r: ps.solve(Sp, np.asarray(r, float))
+                self._ps = None
+            self._fact = None
+            asym = abs(Sp - Sp.T).max() if Sp.nnz else 0.0
+            if asym <= 1e-12 * abs(Sp).max():
+                # −Ŝ_p is symmetric positive definite (−F and the lumped Biot term both are):
+                # half-size Cholesky-type factors, and no per-solve check of the matrix
+                fact = self._fact = _Factorised(-Sp)
+                self.apply = lambda r: -(fact @ r)
+            else:
+                ps = self._ps = pypardiso.PyPardisoSolver()
+                interruptible(ps.factorize, Sp)     # a signal stops the run mid-factorisation
+                self.apply = lambda r: ps.solve(Sp, np.asarray(r, float))
         elif self.method == "twolevel" and groups is not None:
             from .pressure_twolevel import TwoLevelPressure
 
