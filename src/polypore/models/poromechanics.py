@@ -383,8 +383,13 @@ class Poromechanics:
         if backend in ("block-amg", "block-direct"):
             from ..solvers.block_contact import BlockPoroSolver
 
+            # the two-level pressure preconditioner's coarse unknowns (cell and fracture-cell
+            # pressures) and the fracture subsystem its smoother solves exactly (fracture cells,
+            # fracture edges, traces); kinds as in block_counts
+            k = self._flow_kind
             self.solver = BlockPoroSolver(nfree, d, nl, self.mech.condensation(), near_nullspace=self.mech.rigid_modes(),
-                                          mechanics="direct" if backend == "block-direct" else "amg")
+                                          mechanics="direct" if backend == "block-direct" else "amg",
+                                          pressure_groups=(np.isin(k, (0, 3)), np.isin(k, (2, 3, 4))))
         elif backend == "block-petsc":
             from ..solvers.petsc_fieldsplit import PetscBlockPoroSolver
 
@@ -716,12 +721,6 @@ class Poromechanics:
         if hasattr(self.solver, "pressure_nullspace"):
             # the AMG of the pressure Schur block needs the scaled image of a constant pressure
             self.solver.pressure_nullspace = 1.0 / sf
-        if hasattr(self.solver, "pressure_groups"):
-            # the two-level pressure preconditioner's coarse unknowns (cell and fracture-cell
-            # pressures) and the fracture subsystem its smoother solves exactly (fracture cells,
-            # fracture edges, traces); kinds as in block_counts
-            k = self._flow_kind
-            self.solver.pressure_groups = (np.isin(k, (0, 3)), np.isin(k, (2, 3, 4)))
         ar, ac = self._af_rc
         g_vals = (self._g_u[0] * sf[self._g_u[1]], self._g_p[0] * sf[self._g_p[1]])   # pressures scaled by s
         af_vals = local_rows(A_dt).data[self._af_keep] * sf[ar] * sf[ac]  # rows and columns scaled by s

@@ -57,7 +57,7 @@ def resolve_linear(linear: str, fm, order: int, pardiso: bool) -> tuple[str, str
     if pardiso and n >= BLOCK_DIRECT_MIN:
         return "block-direct", (f"auto: about {n:,} unknowns; PARDISO on the displacement and pressure blocks "
                                 "with GMRES around them is faster and smaller than PARDISO on the whole system "
-                                "from about {:,}".format(BLOCK_DIRECT_MIN))
+                                f"from about {BLOCK_DIRECT_MIN:,}")
     if not pardiso and n > SUPERLU_MAX:
         return "block-amg", (f"auto: about {n:,} unknowns and no PARDISO: SciPy's SuperLU would take minutes and "
                              "gigabytes; pip install 'polypore[fast]' for PARDISO")
@@ -75,7 +75,7 @@ def poro_setup(case: CaseFile, fm):
     from ..solvers.linear import have_pardiso
 
     linear, why = resolve_linear((spec.solver.linear if spec.solver is not None else "auto"), fm,
-                                 int(getattr(ms.data, "order", 1)), have_pardiso())
+                                 ms.data.order, have_pardiso())
     if linear not in ("auto", ms.solver.backend):
         ms = dataclasses.replace(ms, solver=dataclasses.replace(ms.solver, backend=linear))
     log.info("linear solver: %s (%s)", ms.solver.backend, why)

@@ -370,7 +370,7 @@ class BlockPoroSolver:
         installed, else SuperLU); ``solver.linear`` "block-amg" and "block-direct"
     pressure_groups : ((n_p,) bool, (n_p,) bool) or None: the unknowns spanning the two-level
         coarse space (cell pressures) and those solved together in its smoother (the fracture
-        subsystem); set by the model
+        subsystem); given by the model
     """
 
     takes_target = True          # solve() accepts Newton's KrylovTarget (weights, forcing term)

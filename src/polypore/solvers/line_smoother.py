@@ -181,9 +181,3 @@ class LineSmoothedAMG:
         x = self._sweep(np.zeros_like(r, dtype=float), r, range(self.n_colors))
         x += self.amg @ (r - self.S @ x)
         return self._sweep(x, r, range(self.n_colors - 1, -1, -1))
-
-    def matvec(self, r):
-        return self @ r
-
-    def aslinearoperator(self):
-        return spla.LinearOperator(self.shape, matvec=self.matvec, dtype=float)

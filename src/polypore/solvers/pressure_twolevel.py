@@ -31,14 +31,6 @@ import scipy.sparse.linalg as spla
 from .linear import repeatable_random
 
 
-class _Apply:
-    def __init__(self, f):
-        self._f = f
-
-    def __matmul__(self, r):
-        return self._f(r)
-
-
 class TwoLevelPressure:
     """The two-level preconditioner (module docstring) of one pressure operator.
 
@@ -76,7 +68,7 @@ class TwoLevelPressure:
         rs = np.asarray(W.sum(axis=1)).ravel()
         rs[rs == 0.0] = 1.0                    # a face touching no coarse unknown: smoother only
         W = sp.diags(1.0 / rs) @ W
-        # P in the scaled unknowns: rows permuted back, columns are the coarse unknowns
+        # P in K's (unscaled) unknowns: the rows permuted back, the columns the coarse unknowns
         Pk = sp.vstack([sp.identity(C.size, format="csr"), W], format="csr")
         perm = np.concatenate([C, Fi])
         Pk = Pk[np.argsort(perm)]
@@ -85,7 +77,7 @@ class TwoLevelPressure:
         if C.size <= direct_coarse:
             # a small cell problem factorises in milliseconds and solves 5× faster than a V-cycle
             lu = spla.splu(Ac.tocsc())
-            self._cycle = _Apply(lu.solve)
+            self._cycle = spla.LinearOperator(Ac.shape, matvec=lu.solve, dtype=float)
             self.levels = 1
         else:
             with repeatable_random():
