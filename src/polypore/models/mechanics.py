@@ -277,13 +277,13 @@ class ContactMechanics:
         self._setup_pattern(J)
         self.solver = solver or LinearSolver("auto")
         backend = getattr(self.solver, "backend", None)
-        if backend == "block-direct":
-            # block-direct factorises the mechanics block of the coupled system: a mechanics-only
-            # system (a model of its own, or the coupled model's initial state) is that block
-            self.solver = replace(self.solver, backend="auto")
-        elif backend in ("block-amg", "block-petsc"):
+        if backend in ("block-amg", "block-direct", "block-petsc"):
+            # block-direct: S factorised (symmetric positive definite factors), also for the
+            # coupled model's initial state: PARDISO on the whole (u, λ) system there peaked at
+            # 2.1 GB on the 30,000-cell study, above the coupled steps' own peak
             self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8,
-                                            petsc=backend == "block-petsc", options=self.solver.petsc_options)
+                                            petsc=backend == "block-petsc", options=self.solver.petsc_options,
+                                            mechanics="direct" if backend == "block-direct" else "amg")
         self.newton = newton or NewtonOptions(label="contact Newton")
         if self.layout is not None:
             register_layout(self.solver, self.layout)
@@ -294,8 +294,10 @@ class ContactMechanics:
                  "their own patches" if P.identity else f"{self.n_c} patches",
                  "two-sided" if data.two_sided else "one-sided", self.seconds_setup)
 
-    def block_solver(self, rtol: float = 1e-8, rho: float = 0.1, petsc: bool = False, options=None):
-        """GMRES + AMG on the condensed displacement block (3D sizes), see solvers/block_contact.py;
+    def block_solver(self, rtol: float = 1e-8, rho: float = 0.1, petsc: bool = False, options=None,
+                     mechanics: str = "amg"):
+        """GMRES + AMG (``mechanics="direct"``: S factorised) on the condensed displacement block, see
+        solvers/block_contact.py;
         with ``petsc`` the same preconditioner through PETSc's PCFIELDSPLIT (solvers/petsc_fieldsplit.py),
         tuned by the PETSc ``options`` ([solver.petsc])."""
         if petsc:
@@ -306,7 +308,7 @@ class ContactMechanics:
         from ..solvers.block_contact import BlockContactSolver
 
         return BlockContactSolver(self.free.size, self.dim, self.condensation(rho), near_nullspace=self.rigid_modes(),
-                                  rtol=rtol)
+                                  rtol=rtol, mechanics=mechanics)
 
     def condensation(self, rho: float = 0.1):
         """Contact-row data for the block preconditioners: c_σ = |σ| β_σ (the scaled rows), n⁺."""

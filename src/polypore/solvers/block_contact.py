@@ -40,6 +40,7 @@ smoother of :mod:`.line_smoother`) or factorised (``"direct"``), set up again on
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import time
 from dataclasses import dataclass, field
@@ -110,6 +111,54 @@ def _amg(S, B=None):
     return ml.aspreconditioner(cycle="V")
 
 
+class _CondensedSolve:
+    """S⁻¹ of the condensed displacement block as an operator (``@``), set up again only when S
+    changed: AMG (3D: around a line smoother) or, with ``mechanics = "direct"``, S factorised
+    (PARDISO when installed, else SuperLU). The elastic block is constant and the condensed
+    contact rows change only with the faces' states and slip directions, so on faults that stay
+    stuck one set-up serves the whole run. S is recognised by a SHA-1 digest of its pattern and
+    values: keeping copies to compare against held 75 MB on the 30,000-cell study."""
+
+    def __init__(self, mechanics: str, near_nullspace=None):
+        if mechanics not in MECHANICS_SOLVERS:
+            raise ValueError(f"mechanics must be one of {MECHANICS_SOLVERS}, got {mechanics!r}")
+        self.mechanics, self.near_nullspace = mechanics, near_nullspace
+        self._key = self._op = None
+        self.setups = 0
+
+    @staticmethod
+    def _digest(S) -> tuple:
+        h = hashlib.sha1()
+        for a in (S.indptr, S.indices, S.data):
+            h.update(np.ascontiguousarray(a))
+        return S.shape, S.nnz, h.digest()
+
+    def __call__(self, S):
+        S = sp.csr_matrix(S)
+        key = self._digest(S)
+        if key == self._key:
+            return self._op
+        self._op = self._key = None            # the old factors go before the new ones are made
+        B = self.near_nullspace
+        if self.mechanics == "direct":
+            self._op = _Factorised(S)
+        elif B is not None and np.ndim(B) == 2 and B.shape[1] == 6:
+            # 3D: line Gauss–Seidel around the V-cycle (line_smoother.py): on flat cells the
+            # point smoothers miss the short edges' direction (PCG on emerald's S: 176 -> 101)
+            from .line_smoother import LineSmoothedAMG
+
+            with repeatable_random():
+                self._op = LineSmoothedAMG(S, B, _amg)
+        else:
+            self._op = _amg(S, B)
+        self._key = key
+        self.setups += 1
+        return self._op
+
+    def release(self) -> None:
+        self._op = self._key = None
+
+
 @dataclass
 class ContactCondensation:
     """Per-face data of the contact rows for the condensation (module docstring).
@@ -158,6 +207,7 @@ class BlockContactSolver:
     rtol, maxiter : GMRES tolerance (relative residual) and cap on inner iterations; Newton's
         :class:`~.newton.KrylovTarget` overrides rtol per solve
     accept_rtol : relative residual still returned when rtol is not reached (round-off floor)
+    mechanics : "amg" or "direct" (S factorised): as in :class:`BlockPoroSolver`
     """
 
     takes_target = True          # solve() accepts Newton's KrylovTarget (weights, forcing term)
@@ -169,8 +219,16 @@ class BlockContactSolver:
     maxiter: int = 300
     restart: int = 100
     accept_rtol: float = 1e-6
+    mechanics: str = "amg"
     iterations: list = field(default_factory=list)
     seconds: float = 0.0
+
+    def __post_init__(self):
+        self._s = _CondensedSolve(self.mechanics, self.near_nullspace)
+
+    def release(self) -> None:
+        """Free the set-up of S (factors or AMG hierarchy)."""
+        self._s.release()
 
     def solve(self, J, rhs, target=None) -> np.ndarray:
         """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
@@ -181,11 +239,13 @@ class BlockContactSolver:
             A, Bt = J[:n_u, :n_u], J[:n_u, n_u:]
             Cu, Cl = J[n_u:, :n_u], J[n_u:, n_u:]
             Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
-            amg = _amg(S, self.near_nullspace)
+            del A, Cl
+            Ms = self._s(S)
+            del S
 
         def apply(r):
             ru, rc = r[:n_u], r[n_u:]
-            xu = amg @ (ru - Bt @ (Cinv @ rc))
+            xu = Ms @ (ru - Bt @ (Cinv @ rc))
             xc = Cinv @ (rc - Cu_s @ xu)
             return np.concatenate([xu, xc])
 
@@ -312,17 +372,15 @@ class _PressureSolve:
         key = (F.shape, F.nnz)
         if self._key is not None and self._key[0] == key and np.array_equal(self._key[1], F.data):
             return
+        # the previous step's set-up goes before the new one is made (its apply closure held the
+        # old factors through the new factorisation); PARDISO keeps factors until told: without
+        # this, peak memory grew to 11 GB over C5's 50 steps at 46k cells
+        self.release()
         lump = np.asarray((Gpu @ sp.diags(1.0 / dA)).multiply(Gup.T).sum(axis=1)).ravel()
         Sp = sp.csr_matrix(F - sp.diags(lump))
         if self.method == "pardiso":
             import pypardiso
 
-            if getattr(self, "_ps", None) is not None:
-                # release the previous step's factors: PARDISO keeps them until told (without
-                # this, peak memory grew to 11 GB over C5's 50 steps at 46k cells)
-                self._ps.free_memory(everything=True)
-                self._ps = None
-            self._fact = None
             asym = abs(Sp - Sp.T).max() if Sp.nnz else 0.0
             if asym <= 1e-12 * abs(Sp).max():
                 # −Ŝ_p is symmetric positive definite (−F and the lumped Biot term both are):
@@ -348,6 +406,12 @@ class _PressureSolve:
             self.apply = lambda r: sign * (M @ r)
         self._key = (key, F.data.copy())
         self.builds += 1
+
+    def release(self) -> None:
+        """Free the set-up (factors, AMG hierarchy); the next update builds it again."""
+        if getattr(self, "_ps", None) is not None:
+            self._ps.free_memory(everything=True)
+        self._ps = self._fact = self.apply = self._key = None
 
 
 @dataclass
@@ -393,40 +457,20 @@ class BlockPoroSolver:
     accept_rtol: float = 1e-4
     iterations: list = field(default_factory=list)
     seconds: float = 0.0
-    mechanics_setups: int = 0
 
     def __post_init__(self):
-        if self.mechanics not in MECHANICS_SOLVERS:
-            raise ValueError(f"mechanics must be one of {MECHANICS_SOLVERS}, got {self.mechanics!r}")
+        self._s = _CondensedSolve(self.mechanics, self.near_nullspace)
         self._p = _PressureSolve(self.pressure)
-        self._s_key = self._s_op = None
 
-    def _mechanics_solve(self, S):
-        """S⁻¹ as an operator (``@``): AMG, or S factorised (``mechanics = "direct"``: PARDISO when
-        installed, else SuperLU). Set up again only when S changed: the elastic block is constant
-        and the condensed contact rows change only with the faces' states and slip directions, so
-        on faults that stay stuck one set-up serves the whole run."""
-        S = sp.csr_matrix(S)
-        key = self._s_key
-        if key is not None and key[0] == (S.shape, S.nnz) and np.array_equal(key[1], S.indices) \
-                and np.array_equal(key[2], S.data):
-            return self._s_op
-        self._s_op = None                     # the old factors go before the new ones are made
-        B = self.near_nullspace
-        if self.mechanics == "direct":
-            self._s_op = _Factorised(S)
-        elif B is not None and np.ndim(B) == 2 and B.shape[1] == 6:
-            # 3D: line Gauss–Seidel around the V-cycle (line_smoother.py): on flat cells the
-            # point smoothers miss the short edges' direction (PCG on emerald's S: 176 -> 101)
-            from .line_smoother import LineSmoothedAMG
+    def release(self) -> None:
+        """Free the set-ups of S and Ŝ_p (after the last step; a later solve builds them again)."""
+        self._s.release()
+        self._p.release()
 
-            with repeatable_random():
-                self._s_op = LineSmoothedAMG(S, B, _amg)
-        else:
-            self._s_op = _amg(S, B)
-        self._s_key = ((S.shape, S.nnz), S.indices.copy(), S.data.copy())
-        self.mechanics_setups += 1
-        return self._s_op
+    @property
+    def mechanics_setups(self) -> int:
+        """How many times S was set up (factorised or its AMG built)."""
+        return self._s.setups
 
     def solve(self, J, rhs, target=None) -> np.ndarray:
         """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
@@ -440,7 +484,9 @@ class BlockPoroSolver:
             Gpu, F = J[po:, :nu], J[po:, po:]
             Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
             self._p.update(F, Gpu, Gup, A.diagonal(), self.pressure_nullspace, self.pressure_groups)
-            Mu, Mp = self._mechanics_solve(S), self._p.apply
+            del A, Cl, F                      # GMRES multiplies by J itself: only S's set-up stays
+            Mu, Mp = self._s(S), self._p.apply
+            del S
 
         def apply(r):
             ru, rl, rp = r[:nu], r[nu:po], r[po:]
