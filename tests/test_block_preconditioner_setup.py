@@ -1,4 +1,4 @@
-"""Set-ups of the block preconditioners (solvers/block_contact.py) are reused while their matrix is
+"""Set-ups of the block preconditioners (solvers/block_contact.py): the condensed block, reused while
 unchanged, rebuilt when it changes, and freed on release."""
 
 import numpy as np
@@ -33,3 +33,25 @@ def test_condensed_solve_is_set_up_once_per_matrix(mechanics):
 def test_condensed_solve_rejects_an_unknown_method():
     with pytest.raises(ValueError, match="mechanics must be one of"):
         _CondensedSolve("cholesky")
+
+
+def test_condensed_block_is_the_symmetric_part_of_the_schur_complement():
+    """S = A − ½(P + Pᵀ), P = Bt Cl̂⁻¹ Cû, equals ½(S₀ + S₀ᵀ) with S₀ = A − P for a symmetric A
+    (the condensation symmetrises only its contact term since the set-up memory was cut)."""
+    from polypore.solvers.block_contact import ContactCondensation
+
+    rng = np.random.default_rng(5)
+    nf, d, nu = 6, 3, 40
+    A = _spd(7)[:nu, :nu]
+    n = rng.standard_normal((nf, d))
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    c = 1.0 + rng.random(nf)
+    Bt = sp.random(nu, nf * d, density=0.2, random_state=1, format="csr")
+    Cu = sp.random(nf * d, nu, density=0.2, random_state=2, format="csr")
+    blocks = [c[f] * 0.3 * rng.standard_normal((d, d)) for f in range(nf)]
+    Cl = sp.block_diag(blocks, format="csr")
+    cond = ContactCondensation(c, n, 0.1)
+    Cinv, Cu_s, S = cond.condense(A, Bt, Cu, Cl)
+    S0 = (A - Bt @ Cinv @ Cu_s).toarray()
+    assert np.abs(S.toarray() - 0.5 * (S0 + S0.T)).max() < 1e-13 * np.abs(S0).max()
+    assert np.abs(S.toarray() - S.toarray().T).max() == 0.0
