@@ -18,10 +18,11 @@ M_MMAP_THRESHOLD = -3          # mallopt parameter (malloc.h)
 # Blocks above this size are mapped on their own and unmapped when freed. glibc's default starts
 # at 128 kB but raises itself up to 32 MB after the first large frees, after which the Newton
 # loop's 10-100 MB temporaries (Jacobian copies, the condensed block, AMG set-ups) came from the
-# heap and fragmented it: on the 30,000-cell corner-point study the resident memory of one step
-# grew from 1.26 to 2.08 GB while the live arrays stayed at 0.5-0.7 GB; with the threshold fixed
-# at 1 MiB it stayed at 1.1-1.27 GB.
-MMAP_THRESHOLD = 1 << 20
+# heap and fragmented it: on the 30,000-cell corner-point study (block-amg) the resident memory
+# of one step grew from 1.26 to 2.08 GB while the live arrays stayed at 0.5-0.7 GB. Fixed at
+# 1 MiB the run peaked at 1.40 GB but the page faults of fresh mappings cost emerald-injection
+# 21 % in wall time (31.6 against 26.1 s); 8 MiB keeps both: 1.48 GB, and 27.1 s.
+MMAP_THRESHOLD = 8 << 20
 
 
 def trim_heap() -> bool:
