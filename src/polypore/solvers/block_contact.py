@@ -431,9 +431,8 @@ class BlockPoroSolver:
     condensation : ContactCondensation
     pressure : "auto", "pardiso", "twolevel" (:mod:`.pressure_twolevel`) or "amg" (smoothed
         aggregation on the whole block): the Ŝ_p solve. "auto" is "twolevel" with
-        ``mechanics = "amg"`` (no large factorisation on that path: the 30,000-cell study ran in
-        69 s and 1.4 GB against 79 s and 2.7 GB with PARDISO on Ŝ_p) and PARDISO, where
-        installed, with ``mechanics = "direct"``
+        ``mechanics = "amg"`` (no large factorisation on that path; docs/choices.md) and PARDISO,
+        where installed, with ``mechanics = "direct"``
     pressure_nullspace : (n_p,) near-null space of Ŝ_p for its AMG (a constant pressure in the
         caller's scaled unknowns); set by the model before each step
     mechanics : "amg" (smoothed aggregation on S) or "direct" (S factorised: PARDISO when
