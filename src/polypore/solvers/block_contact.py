@@ -33,8 +33,8 @@ replaced by the fixed-stress-type diagonal approximation
 
 which keeps F's sparsity (the full product couples every pair of cells sharing a node and
 costs 10× more to factorise) and does not depend on the contact state: it is set up once per time
-step (PARDISO when installed, else the two-level preconditioner of :mod:`.pressure_twolevel`) and
-reused by every Newton iteration. S is solved by AMG (``mechanics = "amg"``, 3D with the line
+step (with ``mechanics = "direct"`` PARDISO when installed, otherwise the two-level preconditioner
+of :mod:`.pressure_twolevel`) and reused by every Newton iteration. S is solved by AMG (``mechanics = "amg"``, 3D with the line
 smoother of :mod:`.line_smoother`) or factorised (``"direct"``), set up again only when it changed.
 """
 
@@ -238,7 +238,7 @@ class BlockContactSolver:
         t0 = time.perf_counter()
         J = sp.csr_matrix(J)
         n_u = self.n_u
-        with SPLIT.timed("preconditioner", "block preconditioner set-up (AMG)"):
+        with SPLIT.timed("preconditioner", "block preconditioner set-up"):
             A, Bt = J[:n_u, :n_u], J[:n_u, n_u:]
             Cu, Cl = J[n_u:, :n_u], J[n_u:, n_u:]
             Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
@@ -365,7 +365,7 @@ class _PressureSolve:
 
             method = "pardiso" if have_pardiso() else "twolevel"
         self.method = method
-        self._key = None
+        self._key = self._ps = self._fact = self.apply = None
         self.builds = 0
 
     def update(self, F, Gpu, Gup, dA, B=None, groups=None):
@@ -412,7 +412,7 @@ class _PressureSolve:
 
     def release(self) -> None:
         """Free the set-up (factors, AMG hierarchy); the next update builds it again."""
-        if getattr(self, "_ps", None) is not None:
+        if self._ps is not None:
             self._ps.free_memory(everything=True)
         self._ps = self._fact = self.apply = self._key = None
 
@@ -483,7 +483,7 @@ class BlockPoroSolver:
         J = sp.csr_matrix(J)
         nu, nl = self.n_u, self.n_l
         po = nu + nl
-        with SPLIT.timed("preconditioner", "block preconditioner set-up (AMG)"):
+        with SPLIT.timed("preconditioner", "block preconditioner set-up"):
             A, Bt, Gup = J[:nu, :nu], J[:nu, nu:po], J[:nu, po:]
             Cu, Cl = J[nu:po, :nu], J[nu:po, nu:po]
             Gpu, F = J[po:, :nu], J[po:, po:]
