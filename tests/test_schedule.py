@@ -73,6 +73,36 @@ def test_newton_gives_up_early_when_the_residual_stalls():
                           NewtonOptions(max_iterations=50, stall_iterations=0, free_steps=2, min_step=1.0), verbose=False)
 
 
+def test_newton_gives_up_when_the_line_search_crawls():
+    """Every step cut to min_step without the residual halving (an iterate at a kink that neither
+    linearisation crosses): a stall after crawl_iterations, not after free_steps + stall_iterations;
+    without stall_iterations (static problems) the loop runs on to max_iterations."""
+    import numpy as np
+    import scipy.sparse as sp
+
+    from polypore.core.errors import RunError
+    from polypore.solvers.newton import Linearisation, NewtonOptions, semismooth_newton
+
+    class Overshoot:
+        def solve(self, J, b):
+            return np.array([-1000.0 * np.sign(self.x)])
+
+    solver = Overshoot()
+
+    def lin(x):
+        solver.x = x[0]
+        r = abs(x[0]) + 1.0                      # never zero, kink at 0
+        return Linearisation(np.array([r]), sp.csr_matrix(np.eye(1)), {"r": r}, {}, None)
+
+    opts = NewtonOptions(max_iterations=40, stall_iterations=20, free_steps=0, min_step=1.0 / 64)
+    with pytest.raises(RunError, match="line search cut the last 3 steps") as err:
+        semismooth_newton(lin, np.array([1.0]), solver, lambda dx, x: 1.0, opts, verbose=False)
+    assert "stalled" in str(err.value)
+    with pytest.raises(RunError, match="did not converge in 40"):
+        semismooth_newton(lin, np.array([1.0]), solver, lambda dx, x: 1.0,
+                          NewtonOptions(max_iterations=40, free_steps=0, min_step=1.0 / 64), verbose=False)
+
+
 def test_newton_accepts_the_round_off_floor_only_when_nothing_moves():
     """Residual stuck slightly above tol with zero increments and a fixed active set: accepted;
     with increments that still move the iterate: not."""

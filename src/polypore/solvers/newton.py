@@ -111,6 +111,14 @@ class NewtonOptions:
     # two half steps converge in ~9 iterations each). 0 (the default, static problems) disables
     # the test; the time loops of runs/ set it.
     stall_iterations: int = 0
+    # With stall_iterations set, also give up when the line search has cut each of the last
+    # `crawl_iterations` steps to ≤ `crawl_step` and the residual has not halved over them: the
+    # iterate sits at a kink of the contact law that neither one-sided linearisation crosses (a face
+    # flipping stick ↔ slip, its Newton slip predicted backwards; docs/iterative_cornerpoint.md, "What
+    # the stall is"). Measured: the 10⁴-cell weak-scaling grid, day 3, steps of 1/16–1/64 from
+    # iteration 8 on, cut at iteration 18 by the halving test; a smaller time step converges.
+    crawl_iterations: int = 3
+    crawl_step: float = 1.0 / 8
     # Attainable accuracy: with the active set fixed and an increment below
     # 10⁻² increment_tol (nothing moves), a residual up to `floor_factor` × tol is the round-off
     # floor of the linear solves (cond(J) ε grows like h⁻²: 1.1e-8 on C5 at 23k cells after T/2,
@@ -282,6 +290,12 @@ def _newton(linearise, x0, solver, increment_norm, options, verbose, first_tight
                 raise RunError(f"{options.label} stalled: the scaled residual did not halve in {k} iterations "
                                f"(best {min(r):.3e}, now {rnorm:.3e}; active sets cycling) — smaller load or "
                                "time steps help")
+        c = options.crawl_iterations
+        if k and c and len(history) > c and max(h["step"] for h in history[-c:]) <= options.crawl_step \
+                and rnorm > 0.5 * history[-c - 1]["residual"]:
+            raise RunError(f"{options.label} stalled: the line search cut the last {c} steps to ≤ "
+                           f"{options.crawl_step:g} and the scaled residual did not halve ({rnorm:.3e}; an iterate "
+                           "at a kink of the contact law) — smaller load or time steps help")
         prev_active = None if lin.active_set is None else lin.active_set.copy()
         trim_heap()                 # the assembly's temporaries, before the solver's allocations
         t0 = time.perf_counter()
