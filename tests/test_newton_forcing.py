@@ -82,7 +82,11 @@ def test_forcing_term_rules():
     # never below the need, never below forcing_min, never above forcing_max
     assert forcing_term(1e-6, 1.0, 1e-2, False, o) == pytest.approx(need / 1e-6)
     assert forcing_term(1e5, None, None, True, o) == o.forcing_min
-    assert forcing_term(1e-12, 1e-11, 1e-2, True, o) == o.forcing_max
+    # a tight solve at an iterate that already meets the test only confirms it: θ tol/‖F‖ itself
+    # (above forcing_max), up to forcing_confirm; EW's η stays capped at forcing_max
+    assert forcing_term(1e-8, 1e-6, 1e-2, True, o) == pytest.approx(need / 1e-8)
+    assert forcing_term(1e-12, 1e-11, 1e-2, True, o) == o.forcing_confirm
+    assert forcing_term(1e-12, 1e-11, 1e-2, False, o) == o.forcing_max
 
 
 def test_row_weights_bound_their_spread():
