@@ -168,3 +168,22 @@ def test_time_line_names_the_parts_of_a_direct_solve(tmp_path, cli):
     assert split_labels("pardiso") == {"assembly": "assembly", "preconditioner": "factorisation and solve",
                                        "other": "other"}
     assert split_labels("block-amg")["krylov"] == "Krylov iterations"
+
+
+def test_block_pattern_put_scatters_a_block_of_distinct_entries_as_add_does():
+    """put (a plain scatter) on a block whose entries have distinct slots gives add's sums bit for
+    bit, also when later blocks add into the same slots; distinct() tells such blocks apart."""
+    from polypore.assembly.pattern import BlockPattern
+
+    rng = np.random.default_rng(3)
+    n = 29
+    A = sp.random(n, n, density=0.2, random_state=4, format="coo")       # distinct (row, col)
+    blocks = [(A.row, A.col), (rng.integers(0, n, 150), rng.integers(0, n, 150))]
+    values = [A.data, rng.standard_normal(150)]
+    pat = BlockPattern.build(blocks, (n, n))
+    assert pat.distinct(0) and not pat.distinct(1)
+    ref = pat.add(pat.add(pat.zeros(), 0, values[0]), 1, values[1])
+    got = pat.add(pat.put(pat.zeros(), 0, values[0]), 1, values[1])
+    assert np.array_equal(got, ref)
+    with pytest.raises(ValueError, match="block 0"):
+        pat.put(pat.zeros(), 0, values[1])

@@ -138,6 +138,22 @@ class BlockPattern:
         np.add.at(data, self.pattern.slot[a:b], v)
         return data
 
+    def put(self, data: np.ndarray, block: int, values: np.ndarray) -> np.ndarray:
+        """Like :meth:`add` for a block whose contributions have distinct slots no other block
+        has filled yet (e.g. an assembled csr matrix's entries into zeros): a plain scatter, ~10×
+        faster than ``np.add.at`` and the same values bit for bit (0 + v = v); returns ``data``."""
+        v = np.asarray(values, float).ravel()
+        a, b = self.starts[block], self.starts[block + 1]
+        if v.size != b - a:
+            raise ValueError(f"block {block}: {v.size} values for {b - a} kept contributions")
+        data[self.pattern.slot[a:b]] = v
+        return data
+
+    def distinct(self, block: int) -> bool:
+        """Whether the block's contributions have distinct slots (so that :meth:`put` may fill it)."""
+        sl = self.pattern.slot[self.starts[block]:self.starts[block + 1]]
+        return bool(np.unique(sl).size == sl.size)
+
     def matrix(self, data: np.ndarray) -> sp.csr_array:
         """csr array (n_rows, n_cols) on the pattern with the given data (nnz,), not copied."""
         p = self.pattern

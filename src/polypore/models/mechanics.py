@@ -414,6 +414,26 @@ class ContactMechanics:
             F, gthr = P.mean @ F, P.mean @ gthr
         self.law = ContactLaw(c.law, np.array(F, float), np.array(gthr, float), beta)
 
+    def _free_block(self):
+        """A as coo (this rank's rows on N ranks), the free numbers of its rows and columns, and
+        the mask of its entries in free rows and columns."""
+        A = local_rows(self.A).tocoo()
+        arow = A.row if self.dof_layout is None else self.dof_layout.owned[A.row]
+        fr, fc = self.free_index[arow], self.free_index[A.col]
+        return A, fr, fc, (fr >= 0) & (fc >= 0)
+
+    def _bt_values(self, Bt) -> np.ndarray:
+        # Newton works on λ̃ = λ/β (a length, like u) with the contact rows multiplied by β: the
+        # Jacobian then has blocks of one scale (~ μ h^{d-2}) instead of μ, |σ| and |σ|/β, which
+        # would cost the direct solver ~8 digits
+        return Bt.data * self.law.beta[Bt.col // self.dim]
+
+    def fixed_block_values(self) -> tuple[np.ndarray, np.ndarray]:
+        """The values of the Jacobian's fixed blocks A and Bᵀ β, in the order of
+        :meth:`jacobian_blocks` (recomputed from A: a caller need not keep them between steps)."""
+        A, _, _, ka = self._free_block()
+        return A.data[ka], self._bt_values(self.Bcv[:, self.free].T.tocoo())
+
     def jacobian_blocks(self, J) -> tuple[list, list]:
         """The (row, col) lists of the Newton Jacobian's mechanical blocks in the numbering of the
         unknowns [free u, λ̃, …], and their values where they are fixed.
@@ -433,15 +453,9 @@ class ContactMechanics:
             change at every iterate)
         """
         d, nf, nfree = self.dim, self.n_c, self.free.size
-        A = local_rows(self.A).tocoo()
-        arow = A.row if self.dof_layout is None else self.dof_layout.owned[A.row]
-        fr, fc = self.free_index[arow], self.free_index[A.col]
-        ka = (fr >= 0) & (fc >= 0)
+        A, fr, fc, ka = self._free_block()
         Bt = self.Bcv[:, self.free].T.tocoo()
-        # Newton works on λ̃ = λ/β (a length, like u) with the contact rows multiplied by β: the
-        # Jacobian then has blocks of one scale (~ μ h^{d-2}) instead of μ, |σ| and |σ|/β, which
-        # would cost the direct solver ~8 digits
-        bt_vals = Bt.data * self.law.beta[Bt.col // d]
+        bt_vals = self._bt_values(Bt)
         # C_u: row (σ, i), col (slot a, j) for every jump entry (σ, a)
         rows = J.row.astype(np.int64)[:, None, None] * d + np.arange(d)[None, :, None]
         colsd = J.col.astype(np.int64)[:, None, None] * d + np.arange(d)[None, None, :]
