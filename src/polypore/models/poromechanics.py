@@ -375,10 +375,11 @@ class Poromechanics:
         # from A itself (step_context) rather than kept as a data array of the whole pattern
         # (nnz × 8 bytes, 86 MB on the 30,000-cell study); A's entries have distinct slots
         self._a_distinct = pat.distinct(0)
-        del values
+        del values, blocks, fcol, frow, dkeep          # the (row, col) lists: int64 per contribution
         it = np.int32 if n < 2**31 - 1 else np.int64
         self._g_u = (pat.take(4, G.data[kg]), gc[kg].astype(it))      # values (m^d), p column
         self._g_p = (pat.take(5, T.data[kt]), tr[kt].astype(it))      # values (m^d), p row
+        del G, T, gr, gc, kg, tr, tc, kt, grow, trow
         self.n_unknowns = n
         self._setup_scaling()
         backend = getattr(self.solver, "backend", None)
