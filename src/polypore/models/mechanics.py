@@ -428,11 +428,11 @@ class ContactMechanics:
         # would cost the direct solver ~8 digits
         return Bt.data * self.law.beta[Bt.col // self.dim]
 
-    def fixed_block_values(self) -> tuple[np.ndarray, np.ndarray]:
-        """The values of the Jacobian's fixed blocks A and Bᵀ β, in the order of
-        :meth:`jacobian_blocks` (recomputed from A: a caller need not keep them between steps)."""
+    def elastic_block_values(self) -> np.ndarray:
+        """The values of the Jacobian's block A (N/m), in the order of :meth:`jacobian_blocks`
+        (recomputed from A: a caller need not keep a copy between steps)."""
         A, _, _, ka = self._free_block()
-        return A.data[ka], self._bt_values(self.Bcv[:, self.free].T.tocoo())
+        return A.data[ka]
 
     def jacobian_blocks(self, J) -> tuple[list, list]:
         """The (row, col) lists of the Newton Jacobian's mechanical blocks in the numbering of the

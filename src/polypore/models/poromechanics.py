@@ -67,7 +67,7 @@ from ..solvers.distributed import OwnedRows, RowBlock, local_rows, owned_layout,
 from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from ..solvers.petsc import shared
-from .contact import OPEN, SLIP, STICK, linearise_contact
+from .contact import OPEN, SLIP, linearise_contact
 from .energy import step_energy
 from .flow import FlowData, FlowModel, FlowSolution, _positive
 from .mechanics import ContactMechanics, MechanicsData, jacobian_pattern
@@ -371,15 +371,16 @@ class Poromechanics:
         self._dil = (J.row, J.data, dkeep)
         blocks.append((po + np.broadcast_to(frow[:, None], dkeep.shape)[dkeep], fcol[dkeep]))
         self.pattern = pat = jacobian_pattern(blocks, n, self.layout)
-        # the elasticity and multiplier blocks never change; they are put into each step's data
-        # from A itself (step_context) rather than kept as a data array of the whole pattern
+        # the elasticity and multiplier blocks never change; A's values are put into each step's
+        # data from A itself (step_context) rather than kept as a data array of the whole pattern
         # (nnz × 8 bytes, 86 MB on the 30,000-cell study); A's entries have distinct slots
         self._a_distinct = pat.distinct(0)
-        del values, blocks, fcol, frow, dkeep          # the (row, col) lists: int64 per contribution
+        self._bt_vals = pat.take(1, values[1])
+        del values, blocks                 # the (row, col) lists: int64 per contribution
         it = np.int32 if n < 2**31 - 1 else np.int64
         self._g_u = (pat.take(4, G.data[kg]), gc[kg].astype(it))      # values (m^d), p column
         self._g_p = (pat.take(5, T.data[kt]), tr[kt].astype(it))      # values (m^d), p row
-        del G, T, gr, gc, kg, tr, tc, kt, grow, trow
+        del G, T                           # coo copies of the coupling blocks
         self.n_unknowns = n
         self._setup_scaling()
         backend = getattr(self.solver, "backend", None)
@@ -741,11 +742,8 @@ class Poromechanics:
         # with 4–6 (contact rows against displacement and pressure rows), so adding 4–6 before them
         # gives pat.fill's sums bit for bit
         pat, cs = self.pattern, self._coupling_sign
-        a_vals, bt_vals = mech.fixed_block_values()
-        j_step = pat.zeros()
-        (pat.put if self._a_distinct else pat.add)(j_step, 0, pat.take(0, a_vals))
-        del a_vals
-        pat.add(j_step, 1, pat.take(1, bt_vals))
+        j_step = (pat.put if self._a_distinct else pat.add)(pat.zeros(), 0, pat.take(0, mech.elastic_block_values()))
+        pat.add(j_step, 1, self._bt_vals)
         j_step = pat.add(pat.add(pat.add(j_step, 4, -cs * g_vals[0]), 5, -g_vals[1]), 6, -af_vals)
         del g_vals, af_vals
         ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old), rel_old)
