@@ -13,12 +13,17 @@ near-null space only (no mesh or coordinates are passed in):
 3. lines = connected components of the graph of *mutual* top-2 couplings among point nodes
    (degree ≤ 2, so paths or cycles); bubbles join their strongest point neighbour's line;
 4. lines coloured (Jones–Plassmann, random priorities, smallest free colour) so that lines of one
-   colour are not coupled in S; each colour's block-diagonal part is factorised once (splu).
+   colour are not coupled in S; each colour's block-diagonal part is factorised once, as a band
+   (`LineBlocks`).
 """
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
-from scipy.sparse.csgraph import connected_components
+from scipy.linalg import lapack
+from scipy.sparse.csgraph import connected_components, reverse_cuthill_mckee
+
+# Widest band (super-diagonals) factorised as a band; wider blocks go to SuperLU.
+MAX_BAND = 128
 
 
 def dof_nodes(B, tol=1e-8):
@@ -125,6 +130,46 @@ def find_lines(S, B, attach_bubbles=True):
     return node, line, F
 
 
+class LineBlocks:
+    """Factors of one colour's within-line block D (symmetric), solved in a band ordering.
+
+    Lines are paths of nodes (with their cells' bubbles), so reverse Cuthill–McKee puts D in a band
+    of 10–50 super-diagonals and LAPACK's banded Cholesky (``dpbtrf``) factorises it in
+    n·(band + 1) numbers. SuperLU was used before: on the 30,000-cell study's S its 18 colour
+    factorisations allocated 0.9 GB for 19 MB of factors (its first guess is 20 × nnz, most of it
+    never touched), which glibc's heap then recycled into resident memory Newton iteration after
+    Newton iteration (1.36 → 1.83 GB over one step). A block whose band is wider than
+    ``MAX_BAND`` or that is not positive definite is factorised by SuperLU as before.
+
+    Attributes
+    ----------
+    order : (m,) int, the colour's dofs (indices into S) in band order
+    """
+
+    def __init__(self, idx: np.ndarray, D: sp.csr_matrix):
+        p = reverse_cuthill_mckee(sp.csr_matrix(D), symmetric_mode=True)
+        Dp = sp.coo_matrix(D[p][:, p])
+        band = int(np.abs(Dp.row - Dp.col).max(initial=0))
+        self.order = idx[p]
+        self._chol = self._lu = None
+        if band <= MAX_BAND:
+            up = Dp.row <= Dp.col
+            ab = np.zeros((band + 1, D.shape[0]))
+            ab[band + Dp.row[up] - Dp.col[up], Dp.col[up]] = Dp.data[up]
+            c, info = lapack.dpbtrf(ab, overwrite_ab=1)
+            if info == 0:
+                self._chol = c
+                return
+        self._lu = spla.splu(sp.csc_matrix(Dp))
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        """D⁻¹ b for b (m,) in ``order``."""
+        if self._chol is not None:
+            x, info = lapack.dpbtrs(self._chol, b)
+            return x
+        return self._lu.solve(b)
+
+
 class LineSmoothedAMG:
     """Symmetric line-block-Gauss–Seidel / AMG composite preconditioner for an SPD block S.
 
@@ -163,11 +208,12 @@ class LineSmoothedAMG:
         self.sets = []
         for k in range(self.n_colors):
             idx = np.nonzero(dcol == k)[0]
-            Sr = S[idx]
-            Sk = Sr[:, idx].tocoo()
+            Sk = S[idx][:, idx].tocoo()
             same = dline[idx[Sk.row]] == dline[idx[Sk.col]]   # within-line part only
-            Dk = sp.csc_matrix((Sk.data[same], (Sk.row[same], Sk.col[same])), shape=(len(idx),) * 2)
-            self.sets.append((idx, Sr, spla.splu(Dk)))
+            Dk = sp.csr_matrix((Sk.data[same], (Sk.row[same], Sk.col[same])), shape=(len(idx),) * 2)
+            del Sk
+            blocks = LineBlocks(idx, Dk)
+            self.sets.append((blocks.order, S[blocks.order], blocks))
         self.amg = amg_factory(S, B)
 
     def _sweep(self, x, b, order):
