@@ -12,6 +12,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..core.memory import int32_indices
+
 
 def interleave(blocks, d: int) -> sp.csr_array:
     """Assemble a d×d grid of (n, n) scalar blocks into one interleaved (n·d, n·d) matrix."""
@@ -28,7 +30,7 @@ def interleave(blocks, d: int) -> sp.csr_array:
             cols.append(B.col.astype(np.int64) * d + j)
             vals.append(B.data)
     A = sp.coo_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n * d, n * d))
-    return A.tocsr()
+    return int32_indices(A.tocsr())
 
 
 FLAT = 4.0   # "thickness" weight: h_K^{d−2} min(1, FLAT t_K/h_K); 1 on every shape-regular cell

@@ -1,4 +1,5 @@
-"""Giving freed heap memory back to the operating system (glibc's ``malloc_trim``).
+"""Giving freed heap memory back to the operating system (glibc's ``malloc_trim``), and compact
+index arrays for the large sparse matrices a model keeps.
 
 The set-up of a model, a mesh generation and each Newton iteration allocate and free many
 temporaries. glibc keeps the freed pages of its heap for later allocations instead of returning
@@ -12,6 +13,8 @@ from __future__ import annotations
 
 import ctypes
 import ctypes.util
+
+import numpy as np
 
 _TRIM = None
 M_MMAP_THRESHOLD = -3          # mallopt parameter (malloc.h)
@@ -43,3 +46,19 @@ def trim_heap() -> bool:
         return False
     _TRIM(0)
     return True
+
+
+INT32_MAX = np.iinfo(np.int32).max
+
+
+def int32_indices(M):
+    """``M`` (a csr/csc matrix or array) with int32 ``indices`` and ``indptr`` where they fit, in place.
+
+    SciPy keeps int64 indices when a matrix is built from int64 coordinates, as assembly does to
+    avoid overflow in ``row * d + i``: on the 10⁵-cell weak-scaling grid the elastic matrix held
+    411 MB of which 137 MB were the upper halves of its column indices. Returns ``M``.
+    """
+    if M.nnz <= INT32_MAX and max(M.shape) <= INT32_MAX:
+        M.indices = M.indices.astype(np.int32, copy=False)
+        M.indptr = M.indptr.astype(np.int32, copy=False)
+    return M

@@ -61,7 +61,7 @@ import scipy.sparse as sp
 
 from ..assembly.pattern import BlockPattern
 from ..core.errors import InputError, RunError
-from ..core.memory import trim_heap
+from ..core.memory import int32_indices, trim_heap
 from ..mesh import FracturedMesh
 from ..solvers.distributed import OwnedRows, RowBlock, local_rows, owned_layout, register_layout
 from ..solvers.linear import LinearSolver, release_solver
@@ -234,8 +234,8 @@ class Poromechanics:
             rows += [r]
             cols += [c]
             vals += [v]
-        G = sp.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                         shape=(mech.n_dofs, self.n_flow))
+        G = int32_indices(sp.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                                       shape=(mech.n_dofs, self.n_flow)))
         # the constant parts of pressure_scale, from the whole G (before it is cut to rows)
         a = mech.A.diagonal()[mech.free]
         self._elastic_diag = float(np.mean(a))                     # (2μ + λ_L) h^{d−2}, N/m (Pa in 2D)
@@ -244,7 +244,7 @@ class Poromechanics:
         # under mpiexec each rank keeps its rows of G (displacement dofs) and Gᵀ (flow unknowns)
         self.flow_layout = owned_layout(self.fm.mesh, lambda part: np.concatenate([self.flow.dof_owner(part), part]))
         self.G = RowBlock.of(G, mech.dof_layout)
-        self.GT = RowBlock.of(G.T.tocsr(), self.flow_layout)
+        self.GT = RowBlock.of(int32_indices(G.T.tocsr()), self.flow_layout)
         self._nc = nc
 
     def _setup_stabilisation(self, delta):
@@ -419,7 +419,10 @@ class Poromechanics:
     def _setup_scaling(self):
         """The flow residual norm's parts (:meth:`_setup_coupling` has those of :meth:`pressure_scale`)."""
         d = self.dofs
-        self._abs_GT = abs(self.GT)
+        GT = self.GT
+        # |Gᵀ| shares Gᵀ's index arrays (a RowBlock's __abs__ does so too)
+        self._abs_GT = abs(GT) if isinstance(GT, RowBlock) else \
+            sp.csr_array((np.abs(GT.data), GT.indices, GT.indptr), shape=GT.shape)
         # equation kind of each flow row that is an unknown: 0 cell mass balance, 1 face flux
         # continuity, 2 matrix–fracture exchange (traces), 3 fracture mass balance, 4 fracture-edge
         # flux continuity
