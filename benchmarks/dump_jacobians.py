@@ -36,7 +36,9 @@ class Recorder:
 
     @property
     def iterations(self):
-        return getattr(self.inner, "iterations", self.inner.stats.iterations)
+        # the block solvers keep a list; LinearSolver keeps it in its stats
+        inner = self.inner
+        return inner.iterations if hasattr(inner, "iterations") else inner.stats.iterations
 
     @property
     def takes_target(self):

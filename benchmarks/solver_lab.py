@@ -56,7 +56,8 @@ def method_block_amg(J, rhs, meta, pns, w=None, pressure="auto"):
 
 def method_blocks(J, rhs, meta, pns, w=None, u="amg", p="pardiso"):
     """The block preconditioner of BlockPoroSolver with a choice of inner solves: u "amg" (today's
-    smoothed aggregation on the condensed S) or "exact" (PARDISO on S); p "pardiso" (Ŝ_p, today's
+    smoothed aggregation on the condensed S), "ls" (that AMG inside the line smoother, block-amg's
+    3-D choice) or "exact" (PARDISO on S); p "pardiso" (Ŝ_p, today's
     default with the fast extra), "amg" or "exact-schur" (the pressure Schur complement
     F − G_pu S⁻¹ G_up applied exactly, by inner PARDISO solves: the splitting's own limit)."""
     import pypardiso
@@ -76,6 +77,10 @@ def method_blocks(J, rhs, meta, pns, w=None, u="amg", p="pardiso"):
     if u == "amg":
         Mu = _amg(S, meta["near_nullspace"])
         su = Mu.__matmul__
+    elif u == "ls":                      # what block-amg uses in 3D: AMG inside line Gauss–Seidel
+        from polypore.solvers.line_smoother import LineSmoothedAMG
+
+        su = LineSmoothedAMG(S, meta["near_nullspace"], _amg).__matmul__
     else:
         psu = pypardiso.PyPardisoSolver()
         psu.factorize(S)
@@ -126,6 +131,8 @@ METHODS = {"pardiso": method_pardiso, "block-amg": method_block_amg,
            "u-amg/p-amg": lambda *a: method_blocks(*a, u="amg", p="amg"),
            "u-exact/p-twolevel": lambda *a: method_blocks(*a, u="exact", p="twolevel"),
            "u-amg/p-twolevel": lambda *a: method_blocks(*a, u="amg", p="twolevel"),
+           "u-ls/p-twolevel": lambda *a: method_blocks(*a, u="ls", p="twolevel"),
+           "u-ls/p-pardiso": lambda *a: method_blocks(*a, u="ls", p="pardiso"),
            "u-exact/p-schur": lambda *a: method_blocks(*a, u="exact", p="exact-schur")}
 
 

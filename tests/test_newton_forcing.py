@@ -125,7 +125,9 @@ def test_row_weights_give_the_newton_measure():
 def test_linear_step_with_an_iterative_solver_converges_in_one_newton_iteration():
     """The first Newton iteration is solved to what the test needs: a linear step (the fracture
     stays closed and stuck) takes one iteration with block-amg and Eisenstat–Walker forcing, as
-    with a direct solver."""
+    with a direct solver — or two when the first solve stopped at the accuracy the weighted norm
+    allows (block_contact.attainable_rtol, a bound that is loose on this small system), the
+    second then a loose one: fewer GMRES iterations than the one tight solve of before (22)."""
     pytest.importorskip("pyamg")
     from test_newton_robustness import linear_case
 
@@ -136,7 +138,9 @@ def test_linear_step_with_an_iterative_solver_converges_in_one_newton_iteration(
         assert P.newton.forcing == "eisenstat-walker"
         _, info = P.step(P.initial_state(0.0), 10.0, energy=False)
         assert info.open == 0 and info.slip == 0
-        assert info.iterations == 1 and info.residual <= P.newton.tol, info.history
+        assert info.residual <= P.newton.tol, info.history
+        assert info.iterations == 1 or (info.iterations == 2 and info.history[1]["forcing"] > 1e-4), info.history
+        assert sum(info.linear_iterations[:info.iterations]) <= 22, info.linear_iterations
 
 
 def test_forcing_takes_fewer_krylov_iterations_and_repeats_itself():
@@ -213,3 +217,29 @@ def test_amg_set_up_is_a_function_of_the_matrix():
     M1, M2 = _amg(A), _amg(A)
     assert np.random.rand() == expected
     assert np.array_equal(M1 @ b, M2 @ b)
+
+
+def test_attainable_rtol_bounds_a_direct_solve_and_does_not_depend_on_chunks(monkeypatch):
+    """block_contact.attainable_rtol: ε‖w∘(|J||x|)‖/‖w∘b‖ bounds the weighted residual of a
+    backward-stable direct solve (rows with b = 0 and large cancelling terms, as the flow rows of
+    a day's first Newton system), and its row chunks give the unchunked value."""
+    import scipy.sparse as sp
+    import scipy.sparse.linalg as spla
+
+    from polypore.solvers import block_contact
+
+    rng = np.random.default_rng(4)
+    n = 400
+    big = 10.0 ** rng.uniform(0, 8, n)                       # transmissibility-like contrasts
+    T = sp.diags([-big[:-1]], [1], shape=(n, n))
+    J = sp.csr_matrix(T + T.T + sp.diags(big + np.r_[big[:-1], 0] + 1.0))
+    b = np.zeros(n)
+    b[::50] = rng.standard_normal(8)
+    w = 10.0 ** rng.uniform(-3, 3, n)
+    x = spla.spsolve(J.tocsc(), b)
+    bn = np.linalg.norm(w * b)
+    est = block_contact.attainable_rtol(J, x, w, bn)
+    res = np.linalg.norm(w * (b - J @ x)) / bn
+    assert 0.0 < res <= est <= 1e3 * res, (res, est)      # a bound, and not a vacuous one
+    monkeypatch.setattr(block_contact, "_ABS_CHUNK", 7)
+    assert block_contact.attainable_rtol(J, x, w, bn) == pytest.approx(est, rel=1e-14)

@@ -20,8 +20,9 @@ oversolving). Two semi-smooth-specific rules keep the exact steps exact: the fir
 (when the caller expects the active set to stay, ``first_tight``), and every iteration whose
 active set equals the previous iterate's (the step is expected to be the last: for a fixed active
 set the residual is affine), solve to θ tol/‖F_k‖, θ = ``forcing_margin``, so that the new
-residual is below tol. A linear problem thus still converges in one Newton iteration, and only
-iterations that change the active set are solved loosely. A tight solve at an iterate that
+residual is below tol. A linear problem thus still converges in one Newton iteration (two when
+θ tol/‖F_k‖ is below the round-off floor of the weighted norm, at which the block solvers stop:
+block_contact.attainable_rtol), and only iterations that change the active set are solved loosely. A tight solve at an iterate that
 already meets the test (θ tol/‖F_k‖ > ``forcing_max``: the confirming step that a residual which
 is not piecewise linear, e.g. with dilatancy, needs) is asked for θ tol/‖F_k‖ itself, up to
 ``forcing_confirm``. A first iteration that is not tight
