@@ -55,3 +55,35 @@ def test_condensed_block_is_the_symmetric_part_of_the_schur_complement():
     S0 = (A - Bt @ Cinv @ Cu_s).toarray()
     assert np.abs(S.toarray() - 0.5 * (S0 + S0.T)).max() < 1e-13 * np.abs(S0).max()
     assert np.abs(S.toarray() - S.toarray().T).max() == 0.0
+
+
+def test_amg_hierarchy_kept_for_a_few_changed_rows_and_rebuilt_for_many():
+    """A new S that differs on few rows (the condensed contact rows) keeps the AMG hierarchy,
+    refitted to S (finest operator and smoother), and preconditions S as well as a new one; a
+    new S that differs on many rows gets a new hierarchy."""
+    import scipy.sparse.linalg as spla
+
+    pytest.importorskip("pyamg")
+    S = _spd(30)
+    n = S.shape[0]
+    b = np.random.default_rng(2).standard_normal(n)
+    cs = _CondensedSolve("amg")
+    cs(S)
+    assert cs.hierarchies == 1
+
+    def pcg(S, op):
+        its = [0]
+        x, info = spla.cg(S, b, rtol=1e-10, maxiter=200, M=spla.LinearOperator(S.shape, matvec=op.__matmul__),
+                          callback=lambda _: its.__setitem__(0, its[0] + 1))
+        assert info == 0
+        return its[0]
+
+    S2 = sp.csr_matrix(S + sp.diags(np.where(np.arange(n) % 97 == 0, 1e4, 0.0)))   # stiff springs on 1 % of rows
+    op2 = cs(S2)
+    assert cs.setups == 2 and cs.hierarchies == 1
+    assert np.array_equal(cs._ml.levels[0].A.diagonal(), S2.diagonal())            # refitted to S2
+    fresh = _CondensedSolve("amg")
+    assert pcg(S2, op2) <= pcg(S2, fresh(S2)) + 2
+    S3 = sp.csr_matrix(S * 2.0)                                                       # every row
+    cs(S3)
+    assert cs.setups == 3 and cs.hierarchies == 2
