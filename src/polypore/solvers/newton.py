@@ -22,11 +22,11 @@ active set equals the previous iterate's (the step is expected to be the last: f
 set the residual is affine), solve to θ tol/‖F_k‖, θ = ``forcing_margin``, so that the new
 residual is below tol. A linear problem thus still converges in one Newton iteration (two when
 θ tol/‖F_k‖ is below the round-off floor of the weighted norm, at which the block solvers stop:
-block_contact.attainable_rtol), and only iterations that change the active set are solved loosely. A tight solve at an iterate that
-already meets the test (θ tol/‖F_k‖ > ``forcing_max``: the confirming step that a residual which
-is not piecewise linear, e.g. with dilatancy, needs) is asked for θ tol/‖F_k‖ itself, up to
-``forcing_confirm``. A first iteration that is not tight
-gets ``forcing_max``: the poromechanics time loop passes ``first_tight`` for its first step and
+block_contact.attainable_rtol), and only iterations that change the active set are solved
+loosely. A tight solve at an iterate that already meets the test (θ tol/‖F_k‖ > ``forcing_max``:
+the confirming step that a residual which is not piecewise linear, e.g. with dilatancy, needs) is
+asked for θ tol/‖F_k‖ itself, up to ``forcing_confirm``. A first iteration that is not tight gets
+``forcing_max``: the poromechanics time loop passes ``first_tight`` for its first step and
 after a step that converged in one iteration, because an exact first solve is wasted when the
 active set then moves (C5 at 46k cells: 56 of a step's ~140 GMRES iterations in the first half of
 the run).
