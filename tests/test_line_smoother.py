@@ -38,16 +38,3 @@ def test_line_blocks_solve_exactly_in_their_own_order(spd, band, monkeypatch):
     assert np.linalg.norm(r) < 1e-12 * np.linalg.norm(b)
     assert (lb._chol is not None) == (spd and band is None)
 
-
-def test_int32_indices_in_place_when_they_fit():
-    """core/memory.py::int32_indices: int64 index arrays of a csr become int32, same matrix."""
-    from polypore.core.memory import int32_indices
-
-    rng = np.random.default_rng(1)
-    r, c = rng.integers(0, 50, 300).astype(np.int64), rng.integers(0, 40, 300).astype(np.int64)
-    A = sp.coo_array((rng.standard_normal(300), (r, c)), shape=(50, 40)).tocsr()
-    A.indices, A.indptr = A.indices.astype(np.int64), A.indptr.astype(np.int64)
-    ref = A.toarray()
-    assert int32_indices(A) is A
-    assert A.indices.dtype == np.int32 and A.indptr.dtype == np.int32
-    assert np.array_equal(A.toarray(), ref)

@@ -16,21 +16,40 @@ from ..core.memory import int32_indices
 
 
 def interleave(blocks, d: int) -> sp.csr_array:
-    """Assemble a d×d grid of (n, n) scalar blocks into one interleaved (n·d, n·d) matrix."""
-    rows, cols, vals = [], [], []
+    """Assemble a d×d grid of (n, n) scalar blocks into one interleaved (n·d, n·d) matrix.
+
+    Built as a block-sparse (d × d blocks) matrix on the union of the blocks' patterns, then
+    converted: an entry absent from its block is an explicit zero there and is dropped, so the
+    result is the coordinate assembly's, entry for entry. The coordinate assembly (three nnz-long
+    arrays per block, concatenated, then converted) peaked at 7 × the result on the 10⁵-cell
+    weak-scaling grid (+2.1 GB for a 0.3 GB matrix).
+    """
+    mats = {}
     n = None
     for i in range(d):
         for j in range(d):
-            B = blocks[i][j]
-            if B is None:
-                continue
-            B = B.tocoo()
-            n = B.shape[0]
-            rows.append(B.row.astype(np.int64) * d + i)
-            cols.append(B.col.astype(np.int64) * d + j)
-            vals.append(B.data)
-    A = sp.coo_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n * d, n * d))
-    return int32_indices(A.tocsr())
+            if blocks[i][j] is not None:
+                B = sp.csr_array(blocks[i][j])
+                B.sum_duplicates()
+                mats[i, j] = B
+                n = B.shape[0]
+    U = None
+    for B in mats.values():
+        one = sp.csr_array((np.ones(B.nnz), B.indices, B.indptr), shape=B.shape)
+        U = one if U is None else U + one
+    U.sort_indices()
+
+    def keys(M):
+        return np.repeat(np.arange(n, dtype=np.int64), np.diff(M.indptr)) * n + M.indices
+
+    ku = keys(U)
+    data = np.zeros((U.nnz, d, d))
+    for (i, j), B in mats.items():
+        data[np.searchsorted(ku, keys(B)), i, j] = B.data
+    del ku, mats
+    A = sp.bsr_array((data, U.indices, U.indptr), shape=(n * d, n * d)).tocsr()
+    A.eliminate_zeros()
+    return int32_indices(A)
 
 
 FLAT = 4.0   # "thickness" weight: h_K^{d−2} min(1, FLAT t_K/h_K); 1 on every shape-regular cell
