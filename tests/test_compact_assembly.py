@@ -42,3 +42,20 @@ def test_interleave_is_the_coordinate_assembly_entry_for_entry():
     assert A.nnz == ref.nnz
     assert np.array_equal(A.indptr, ref.indptr) and np.array_equal(A.indices, ref.indices)
     assert np.array_equal(A.data, ref.data)
+
+
+def test_csr_positions_find_stored_entries_and_only_those():
+    """core/csr.py: positions of (row, col) in M.data where M stores them, found False elsewhere."""
+    from polypore.core.csr import csr_positions
+
+    rng = np.random.default_rng(9)
+    M = sp.random_array((30, 20), density=0.2, random_state=rng, format="csr")
+    M.sort_indices()
+    r, c = rng.integers(0, 30, 500), rng.integers(0, 20, 500)
+    pos, found = csr_positions(M, r, c)
+    dense = M.toarray()
+    stored = np.zeros((30, 20), bool)
+    coo = M.tocoo()
+    stored[coo.row, coo.col] = True
+    assert np.array_equal(found, stored[r, c])
+    assert np.array_equal(M.data[pos[found]], dense[r[found], c[found]])

@@ -12,6 +12,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from ..core.csr import csr_keys
 from ..core.memory import int32_indices
 
 
@@ -39,13 +40,10 @@ def interleave(blocks, d: int) -> sp.csr_array:
         U = one if U is None else U + one
     U.sort_indices()
 
-    def keys(M):
-        return np.repeat(np.arange(n, dtype=np.int64), np.diff(M.indptr)) * n + M.indices
-
-    ku = keys(U)
+    ku = csr_keys(U)
     data = np.zeros((U.nnz, d, d))
     for (i, j), B in mats.items():
-        data[np.searchsorted(ku, keys(B)), i, j] = B.data
+        data[np.searchsorted(ku, csr_keys(B)), i, j] = B.data      # every entry of B is in U
     del ku, mats
     A = sp.bsr_array((data, U.indices, U.indptr), shape=(n * d, n * d)).tocsr()
     A.eliminate_zeros()

@@ -35,20 +35,11 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..core.csr import csr_positions
 from .linear import repeatable_random
 
 
 SMOOTHERS = ("cells", "gauss-seidel")
-
-
-def _entries(K: sp.csr_matrix, rows: np.ndarray, cols: np.ndarray) -> np.ndarray:
-    """K[rows, cols] entry by entry (same shapes; 0 where K has no entry), by a search of the
-    sorted (row, col) keys of K (K.has_sorted_indices)."""
-    n = K.shape[1]
-    keys = np.repeat(np.arange(K.shape[0], dtype=np.int64), np.diff(K.indptr)) * n + K.indices
-    want = rows.astype(np.int64) * n + cols
-    pos = np.minimum(np.searchsorted(keys, want), keys.size - 1)
-    return np.where(keys[pos] == want, K.data[pos], 0.0)
 
 
 class CellBlocks:
@@ -95,7 +86,8 @@ class CellBlocks:
             cells = np.flatnonzero(sel)
             blk = np.concatenate([cell[cells][:, None], F.indices[F.indptr[cells][:, None] + np.arange(m)]], 1)
             mm = m + 1
-            D = _entries(K, np.repeat(blk, mm, axis=1), np.tile(blk, (1, mm))).reshape(-1, mm, mm)
+            pos, found = csr_positions(K, np.repeat(blk, mm, axis=1), np.tile(blk, (1, mm)))
+            D = np.where(found, K.data[pos], 0.0).reshape(-1, mm, mm)
             inv = np.linalg.inv(D)
             for c in np.unique(color[cells]):
                 i = color[cells] == c
