@@ -226,7 +226,7 @@ def test_attainable_rtol_bounds_a_direct_solve_and_does_not_depend_on_chunks(mon
     import scipy.sparse as sp
     import scipy.sparse.linalg as spla
 
-    from polypore.solvers import block_contact
+    from polypore.solvers import block_contact, block_jacobian
 
     rng = np.random.default_rng(4)
     n = 400
@@ -241,5 +241,5 @@ def test_attainable_rtol_bounds_a_direct_solve_and_does_not_depend_on_chunks(mon
     est = block_contact.attainable_rtol(J, x, w, bn)
     res = np.linalg.norm(w * (b - J @ x)) / bn
     assert 0.0 < res <= est <= 1e3 * res, (res, est)      # a bound, and not a vacuous one
-    monkeypatch.setattr(block_contact, "_ABS_CHUNK", 7)
+    monkeypatch.setattr(block_jacobian, "_ABS_CHUNK", 7)
     assert block_contact.attainable_rtol(J, x, w, bn) == pytest.approx(est, rel=1e-14)

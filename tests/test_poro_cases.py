@@ -140,7 +140,7 @@ def test_contact_condensation_is_symmetric_positive_definite_with_slipping_faces
                         st.p[model.flow_free] / ctx[7][model.flow_free]])
     lin = model._linearise(x, ctx)
     assert lin.counts["slip"] > 0 and lin.counts["open"] > 0
-    J = sp.csr_matrix(lin.jacobian)
+    J = sp.csr_matrix(lin.jacobian.tocsr())
     nu, nl = model.mech.free.size, model.n_ff * 3
     A, Bt = J[:nu, :nu], J[:nu, nu:nu + nl]
     Cu, Cl = J[nu:nu + nl, :nu], J[nu:nu + nl, nu:nu + nl]

@@ -18,7 +18,7 @@ def _pressure_block():
     model, fs, _ = poro_setup(case, build_fractured_mesh(case))
     st = model.initial_state(fs.initial_pressure)
     ctx, x0 = model.step_context(st, 86400.0, 86400.0)
-    J = sp.csr_matrix(model._linearise(x0, ctx).jacobian)
+    J = model._linearise(x0, ctx).jacobian.tocsr()
     po = model.mech.free.size + model.mech.n_c * model.dim
     nu = model.mech.free.size
     A, Gup, Gpu, F = J[:nu, :nu], J[:nu, po:], J[po:, :nu], J[po:, po:]
@@ -93,7 +93,7 @@ def test_line_smoothed_amg_on_flat_cells_is_symmetric_and_needs_fewer_iterations
     model, fs, _ = poro_setup(case, build_fractured_mesh(case))
     st = model.initial_state(fs.initial_pressure)
     ctx, x0 = model.step_context(st, 86400.0, 86400.0)
-    J = sp.csr_matrix(model._linearise(x0, ctx).jacobian)
+    J = model._linearise(x0, ctx).jacobian.tocsr()
     nu = model.mech.free.size
     po = nu + model.mech.n_c * model.dim
     _, _, S = model.mech.condensation().condense(J[:nu, :nu], J[:nu, nu:po], J[nu:po, :nu], J[nu:po, nu:po])

@@ -21,3 +21,51 @@ def csr_positions(M, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np
     want = np.asarray(rows, np.int64) * M.shape[1] + cols
     pos = np.minimum(np.searchsorted(keys, want), max(keys.size - 1, 0))
     return pos, keys[pos] == want if keys.size else np.zeros(want.shape, bool)
+
+
+def _row_keys(M, rows: np.ndarray):
+    """(unique rows, their entries' storage positions, keys) for the given rows of M, row-major."""
+    ur = np.unique(rows)
+    ip = np.asarray(M.indptr, np.int64)
+    start, count = ip[ur], ip[ur + 1] - ip[ur]
+    seg = np.repeat(start - np.r_[0, np.cumsum(count)[:-1]], count) + np.arange(count.sum())
+    return ur, seg, np.repeat(ur, count) * M.shape[1] + M.indices[seg]
+
+
+def csr_positions_in_rows(M, rows: np.ndarray, cols: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """As :func:`csr_positions`, with keys made only for the rows asked about (few rows of a
+    large matrix: no nnz-long key array)."""
+    rows = np.asarray(rows, np.int64)
+    want = rows * M.shape[1] + np.asarray(cols, np.int64)
+    _, seg, keys = _row_keys(M, rows)
+    if keys.size == 0:
+        return np.zeros(want.shape, np.int64), np.zeros(want.shape, bool)
+    k = np.minimum(np.searchsorted(keys, want), keys.size - 1)
+    return seg[k], keys[k] == want
+
+
+def with_entries(M, rows: np.ndarray, cols: np.ndarray):
+    """M (csr, sorted indices) with explicit zeros stored at the (rows, cols) it does not hold:
+    the same values and sorted indices, its index type kept."""
+    n = M.shape[1]
+    want = np.unique(np.asarray(rows, np.int64) * n + np.asarray(cols, np.int64))
+    ur, seg, keys = _row_keys(M, want // n)
+    k = np.searchsorted(keys, want)
+    found = np.zeros(want.size, bool)
+    inside = k < keys.size
+    found[inside] = keys[k[inside]] == want[inside]
+    new, k = want[~found], k[~found]
+    if new.size == 0:
+        return M
+    r = new // n
+    ip = np.asarray(M.indptr, np.int64)
+    # the new entry goes before the stored entries of its row with larger columns: at ip[r] plus
+    # the number of its row's keys below it (k minus where the row's keys start among the asked rows)
+    first = np.searchsorted(keys, r * n)
+    at = ip[r] + (k - first)
+    data = np.insert(M.data, at, 0.0)
+    indices = np.insert(M.indices, at, (new % n).astype(M.indices.dtype))
+    indptr = (ip + np.r_[0, np.cumsum(np.bincount(r, minlength=M.shape[0]))]).astype(M.indptr.dtype)
+    out = type(M)((data, indices, indptr), shape=M.shape)
+    out.has_sorted_indices = True
+    return out

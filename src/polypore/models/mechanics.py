@@ -21,13 +21,15 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..assembly.elasticity import elasticity_matrix
-from ..assembly.pattern import BlockPattern
+from ..assembly.pattern import BlockPattern, Pattern
+from ..core.csr import with_entries
 from ..core.errors import InputError
 from ..core.memory import trim_heap
 from ..discretisation import DisplacementSpace, Operators, QuadraticOperators, QuadraticSpace
 from ..discretisation.contact_patches import contact_patches
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
+from ..solvers.block_jacobian import BlockJacobian, FreeBlock, block_diag_csr
 from ..solvers.distributed import OwnedRows, RowBlock, local_rows, min_owner, owned_layout, register_layout
 from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
@@ -161,6 +163,26 @@ def jacobian_pattern(blocks, n: int, layout) -> BlockPattern:
                               n_rows=layout.n_local)
 
 
+def _with_contact_couplings(A, jump, d: int):
+    """A with explicit zeros wherever the condensed contact term couples two dofs: every pair of
+    dofs (both components) of the slots in one patch's jump (``jump`` coo (n_c, n_slots)).
+
+    The block preconditioners' condensed matrix S = A − Bᵀ Ĉ⁻¹ Ĉ_u (solvers/block_contact.py)
+    then has A's pattern and is built by changing those entries of A's restriction in place,
+    without a sparse sum (whose temporaries were the Newton iteration's peak: +1 GB on the
+    10⁵-cell weak-scaling grid). Values, and every product with A, are unchanged.
+    """
+    if jump.nnz == 0:
+        return A
+    E = sp.csr_array((np.ones(jump.nnz), (jump.row, jump.col)), shape=jump.shape)
+    Z = (E.T @ E).tocoo()                                # slot pairs sharing a patch
+    comp = np.arange(d)
+    rows = (Z.row.astype(np.int64)[:, None, None] * d + comp[None, :, None]) + 0 * comp[None, None, :]
+    cols = (Z.col.astype(np.int64)[:, None, None] * d + comp[None, None, :]) + 0 * comp[None, :, None]
+    A.sort_indices()
+    return with_entries(A, rows.ravel(), cols.ravel())
+
+
 def _side_points(space: DisplacementSpace) -> np.ndarray:
     """Evaluation point of every side: its node, or for a node with several sides (on Γ) the
     node nudged 1e-12 of the way towards one of the side's cells.
@@ -266,6 +288,7 @@ class ContactMechanics:
         # B_c = |P| [[·]]_P (= Σ_σ |σ| [[·]]_σ with each face's patch jump: B_cᵀ λ_P = Bᵀ λ_face)
         self.Jcv, self.Bcv = _vector_jump(self.c_jump, P.area, self.n_dofs, d)
         J = self.c_jump.tocoo()
+        self.A = _with_contact_couplings(self.A, J, d)
         self._face_means = {}          # traction boundaries: face-mean operators (order 2: face quadratures)
         self._setup_dirichlet()
         self._setup_contact()
@@ -274,7 +297,6 @@ class ContactMechanics:
         self.layout = owned_layout(mesh, self.dof_owner)
         self.dof_layout = owned_layout(mesh, lambda part: np.repeat(self.slot_owner(part), d))
         self.A = RowBlock.of(self.A, self.dof_layout)
-        self._setup_pattern(J)
         self.solver = solver or LinearSolver("auto")
         backend = getattr(self.solver, "backend", None)
         if backend in ("block-amg", "block-direct", "block-petsc"):
@@ -284,6 +306,11 @@ class ContactMechanics:
             self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8,
                                             petsc=backend == "block-petsc", options=self.solver.petsc_options,
                                             mechanics="direct" if backend == "block-direct" else "amg")
+        self.pattern = self._fixed_vals = self._blocks = self._uu = None
+        if self.blockwise:
+            self._setup_blocks(J)
+        else:
+            self._setup_pattern(J)
         self.newton = newton or NewtonOptions(label="contact Newton")
         if self.layout is not None:
             register_layout(self.solver, self.layout)
@@ -456,13 +483,7 @@ class ContactMechanics:
         A, fr, fc, ka = self._free_block()
         Bt = self.Bcv[:, self.free].T.tocoo()
         bt_vals = self._bt_values(Bt)
-        # C_u: row (σ, i), col (slot a, j) for every jump entry (σ, a)
-        rows = J.row.astype(np.int64)[:, None, None] * d + np.arange(d)[None, :, None]
-        colsd = J.col.astype(np.int64)[:, None, None] * d + np.arange(d)[None, None, :]
-        rows, colsd = np.broadcast_arrays(rows, colsd)
-        fcol = self.free_index[colsd]
-        keep = fcol >= 0
-        self._cu = (J.row, J.data, keep)
+        rows, fcol, keep = self._cu_entries(J)            # C_u: row (σ, i), col (slot a, j)
         lr = (np.arange(nf)[:, None, None] * d + np.arange(d)[None, :, None]) + 0 * np.arange(d)[None, None, :]
         lc = (np.arange(nf)[:, None, None] * d + np.arange(d)[None, None, :]) + 0 * np.arange(d)[None, :, None]
         blocks = [(fr[ka], fc[ka]), (Bt.row, nfree + Bt.col), (nfree + rows[keep], fcol[keep]),
@@ -477,7 +498,49 @@ class ContactMechanics:
     def release_assembly(self) -> None:
         """Free the Jacobian's pattern and fixed values (the coupled model needs them for its
         initial equilibrium only); the next :meth:`linearise` builds them again."""
-        self.pattern = self._fixed_vals = None
+        self.pattern = self._fixed_vals = self._blocks = None
+
+    @property
+    def blockwise(self) -> bool:
+        """Whether the Jacobian goes to the solver by blocks (a block solver, one process): no
+        assembled matrix, A used in place (solvers/block_jacobian.py)."""
+        return bool(getattr(self.solver, "takes_blocks", False)) and self.layout is None
+
+    def free_block(self):
+        """A restricted to the free dofs, without a copy (:class:`~..solvers.block_jacobian.FreeBlock`;
+        its restricted structure is made once and shared)."""
+        if self._uu is None:
+            self._uu = FreeBlock(self.A, self.free)
+        return self._uu
+
+    def _cu_entries(self, J):
+        """(rows, cols, keep): the C_u contributions, row (patch σ, i), col (free number of slot a,
+        component j), for every entry (σ, a) of the patch jump ``J`` (coo) and i, j < d; keep: the
+        column is free. Sets ``self._cu`` (the jump entries and the mask, for the values)."""
+        d = self.dim
+        rows = J.row.astype(np.int64)[:, None, None] * d + np.arange(d)[None, :, None]
+        colsd = J.col.astype(np.int64)[:, None, None] * d + np.arange(d)[None, None, :]
+        rows, colsd = np.broadcast_arrays(rows, colsd)
+        fcol = self.free_index[colsd]
+        keep = fcol >= 0
+        self._cu = (J.row, J.data, keep)
+        return rows, fcol, keep
+
+    def _setup_blocks(self, J):
+        """The fixed blocks (Bᵀ β) and the pattern of C_u for :meth:`linearise` by blocks."""
+        d, nc, nfree = self.dim, self.n_c, self.free.size
+        Bt = self.Bcv[:, self.free].T.tocoo()
+        rows, fcol, keep = self._cu_entries(J)
+        self._blocks = (sp.csr_array((self._bt_values(Bt), (Bt.row, Bt.col)), shape=(nfree, nc * d)),
+                        Pattern.build(rows[keep], fcol[keep], (nc * d, nfree)))
+
+    def jacobian_by_blocks(self, cu: np.ndarray, cl: np.ndarray) -> BlockJacobian:
+        """The contact Jacobian [[A, Bᵀβ], [C_u, C_λ]] by blocks from the values of C_u (kept
+        contributions, :meth:`_cu_entries` order) and C_λ ((n_c, d, d), β² included)."""
+        if self._blocks is None:
+            self._setup_blocks(self.c_jump.tocoo())
+        bt, cu_pattern = self._blocks
+        return BlockJacobian(self.free_block(), bt, cu_pattern.fill(cu), block_diag_csr(cl))
 
     def _setup_pattern(self, J):
         """All (row, col) contributions of the Newton Jacobian, restricted to free dofs, built once
@@ -570,15 +633,20 @@ class ContactMechanics:
         Au, Bl = self.A @ u, self.Bcv.T @ lam.ravel()          # A: a RowBlock on N ranks (gathered)
         Ru = Au + Bl - F
         Ru_f = Ru[self.free]
-        if self.pattern is None:
-            self._setup_pattern(self.c_jump.tocoo())
-        jrow, jval, keep = self._cu
         b = self.law.beta
-        pat = self.pattern
-        cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
-        Jac = pat.fill([self._fixed_vals, pat.take(2, cu), pat.take(3, dC_dlam * (b * b)[:, None, None])])
-        if self.layout is not None:
-            Jac = OwnedRows(Jac, self.layout)
+        if self.blockwise:
+            jrow, jval, keep = self._cu
+            Jac = self.jacobian_by_blocks((dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep],
+                                          dC_dlam * (b * b)[:, None, None])
+        else:
+            if self.pattern is None:
+                self._setup_pattern(self.c_jump.tocoo())
+            jrow, jval, keep = self._cu
+            pat = self.pattern
+            cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
+            Jac = pat.fill([self._fixed_vals, pat.take(2, cu), pat.take(3, dC_dlam * (b * b)[:, None, None])])
+            if self.layout is not None:
+                Jac = OwnedRows(Jac, self.layout)
         # scales: the work-conjugate size of each block (energy-norm scaling)
         # (A u over all dofs includes the Dirichlet reactions, the load of a purely kinematic case)
         su = max(np.linalg.norm(F), np.linalg.norm(Au), np.linalg.norm(Bl), 1e-300)

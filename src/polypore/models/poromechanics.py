@@ -59,10 +59,11 @@ from typing import Mapping
 import numpy as np
 import scipy.sparse as sp
 
-from ..assembly.pattern import BlockPattern
+from ..assembly.pattern import BlockPattern, Pattern
 from ..core.errors import InputError, RunError
 from ..core.memory import int32_indices, trim_heap
 from ..mesh import FracturedMesh
+from ..solvers.block_jacobian import BlockJacobian
 from ..solvers.distributed import OwnedRows, RowBlock, local_rows, owned_layout, register_layout
 from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
@@ -340,7 +341,8 @@ class Poromechanics:
 
     def _setup_pattern(self):
         """Every (row, col) contribution of the step Jacobian, restricted to unknowns, built once
-        (on N ranks: this rank's rows, distributed numbering, :func:`.mechanics.jacobian_pattern`)."""
+        (on N ranks: this rank's rows, distributed numbering, :func:`.mechanics.jacobian_pattern`);
+        with a block solver on one process the blocks' own patterns instead (:meth:`_setup_blocks`)."""
         mech, d, nf = self.mech, self.dim, self.n_ff
         nfree = mech.free.size
         nl = mech.n_c * d
@@ -348,8 +350,10 @@ class Poromechanics:
         po = nfree + nl                                              # offset of the pressures
         n = po + npf
         self.layout = owned_layout(self.fm.mesh, self.dof_owner)    # None serially
-        blocks, values = mech.jacobian_blocks(mech.c_jump.tocoo())   # A, Bᵀ, C_u, C_λ (per patch)
-        self._cu = mech._cu
+        self.n_unknowns = n
+        self._setup_scaling()
+        self._setup_solver()
+        self.pattern = self._blocks = None
         J = mech.jump_scalar.tocoo()                                 # per face: the dilatant aperture
         # G: u rows × p columns (the rows of G this rank keeps), and p rows × u columns from the
         # rows of Gᵀ it keeps: the same values, so that each rank has its rows of both blocks
@@ -361,15 +365,21 @@ class Poromechanics:
         trow = T.row if self.flow_layout is None else self.flow_layout.owned[T.row]
         tr, tc = self.flow_free_index[trow], mech.free_index[T.col]
         kt = (tr >= 0) & (tc >= 0)
-        ar, ac = self._af_rc
-        blocks += [(gr[kg], po + gc[kg]), (po + tr[kt], tc[kt]), (po + ar, po + ac)]
         # dilatancy: ∂(|σ| tan ψ |[[u − u⁰]]_τ|)/∂u in the fracture-pressure rows, one entry per
         # (jump nonzero, component) whose row and column are unknowns
         fcol = mech.free_index[J.col.astype(np.int64)[:, None] * d + np.arange(d)]       # (nnz, d)
         frow = self.flow_free_index[self.dofs.frac[J.row]] if nf else np.zeros(0, np.int64)
         dkeep = (fcol >= 0) & (frow[:, None] >= 0)                    # (nnz, d): one row per face
         self._dil = (J.row, J.data, dkeep)
-        blocks.append((po + np.broadcast_to(frow[:, None], dkeep.shape)[dkeep], fcol[dkeep]))
+        drow, dcol = np.broadcast_to(frow[:, None], dkeep.shape)[dkeep], fcol[dkeep]
+        it = np.int32 if n < 2**31 - 1 else np.int64
+        if self.blockwise:
+            self._setup_blocks((gr[kg], gc[kg], G.data[kg]), (tr[kt], tc[kt], T.data[kt]), (drow, dcol))
+            return
+        blocks, values = mech.jacobian_blocks(mech.c_jump.tocoo())   # A, Bᵀ, C_u, C_λ (per patch)
+        self._cu = mech._cu
+        ar, ac = self._af_rc
+        blocks += [(gr[kg], po + gc[kg]), (po + tr[kt], tc[kt]), (po + ar, po + ac), (po + drow, dcol)]
         self.pattern = pat = jacobian_pattern(blocks, n, self.layout)
         # the elasticity and multiplier blocks never change; A's values are put into each step's
         # data from A itself (step_context) rather than kept as a data array of the whole pattern
@@ -377,12 +387,22 @@ class Poromechanics:
         self._a_distinct = pat.distinct(0)
         self._bt_vals = pat.take(1, values[1])
         del values, blocks                 # the (row, col) lists: int64 per contribution
-        it = np.int32 if n < 2**31 - 1 else np.int64
         self._g_u = (pat.take(4, G.data[kg]), gc[kg].astype(it))      # values (m^d), p column
         self._g_p = (pat.take(5, T.data[kt]), tr[kt].astype(it))      # values (m^d), p row
         del G, T                           # coo copies of the coupling blocks
-        self.n_unknowns = n
-        self._setup_scaling()
+        if self.layout is not None:
+            register_layout(self.solver, self.layout)
+
+    @property
+    def blockwise(self) -> bool:
+        """Whether the Jacobian goes to the solver by blocks (a block solver on one process; no
+        assembled matrix: solvers/block_jacobian.py)."""
+        return bool(getattr(self.solver, "takes_blocks", False)) and self.layout is None
+
+    def _setup_solver(self):
+        """The block solvers of ``solver.linear`` = block-amg, block-direct, block-petsc."""
+        nfree, d = self.mech.free.size, self.dim
+        nl = self.mech.n_c * d
         backend = getattr(self.solver, "backend", None)
         if backend in ("block-amg", "block-direct"):
             from ..solvers.block_contact import BlockPoroSolver
@@ -400,8 +420,28 @@ class Poromechanics:
             self.solver = PetscBlockPoroSolver(nfree, d, nl, self.mech.condensation(),
                                                near_nullspace=self.mech.rigid_modes(),
                                                options=self.solver.petsc_options)
-        if self.layout is not None:
-            register_layout(self.solver, self.layout)
+
+    def _setup_blocks(self, g_up, g_pu, dil):
+        """The patterns of the Jacobian's pressure blocks for :meth:`_linearise` by blocks (the
+        (u, λ) blocks are the mechanics model's, :meth:`.mechanics.ContactMechanics.jacobian_by_blocks`).
+
+        Parameters
+        ----------
+        g_up, g_pu : (rows, cols, values) of G (free u × free p) and Gᵀ (free p × free u), m^d
+        dil : (rows, cols) of the dilatancy entries (free p × free u)
+        """
+        nfree, npf = self.mech.free.size, self.flow_free.size
+        it = np.int32 if max(nfree, npf) < 2**31 - 1 else np.int64
+        up = Pattern.build(g_up[0], g_up[1], (nfree, npf))
+        pu = BlockPattern.build([(g_pu[0], g_pu[1]), dil], (npf, nfree))
+        # F's entries, from the flow pattern's free part: rows ascending and columns ascending in
+        # each row (the free numbering keeps the order), so its CSR structure is (ar, ac) itself
+        ar, ac = self._af_rc
+        f_ptr = np.zeros(npf + 1, it)
+        np.cumsum(np.bincount(ar, minlength=npf), out=f_ptr[1:])
+        self._blocks = {"up": (up, g_up[2], g_up[1].astype(it)), "pu": (pu, pu.take(0, g_pu[2]), g_pu[0].astype(it)),
+                        "pp": (f_ptr, ac)}
+        self._cu = self.mech._cu
 
     def release_solver(self) -> None:
         """Free the linear solver's matrices and preconditioner set-ups (PETSc's, where it has any)
@@ -680,14 +720,22 @@ class Poromechanics:
         b = mech.law.beta
         jrow, jval, keep = self._cu
         cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
-        pat = self.pattern
-        # blocks in pattern order 2, 3, then 7 after the step's 4–6: the sums of pat.fill bit for bit
-        data = pat.add(j_step.copy(), 2, pat.take(2, cu))
-        pat.add(data, 3, pat.take(3, dC_dlam * (b * b)[:, None, None]))
-        Jac = pat.matrix(pat.add(data, 7, pat.take(7, dil_vals)))
-        del data
-        if self.layout is not None:
-            Jac = OwnedRows(Jac, self.layout)
+        if self.blockwise:
+            Gup, pu_data, Fp = j_step
+            pu = self._blocks["pu"][0]
+            if np.any(dil_vals):
+                pu_data = pu.add(pu_data.copy(), 1, dil_vals)
+            Jm = mech.jacobian_by_blocks(cu, dC_dlam * (b * b)[:, None, None])
+            Jac = BlockJacobian(Jm.uu, Jm.ul, Jm.lu, Jm.ll, Gup, pu.matrix(pu_data), Fp)
+        else:
+            pat = self.pattern
+            # blocks in pattern order 2, 3, then 7 after the step's 4–6: the sums of pat.fill bit for bit
+            data = pat.add(j_step.copy(), 2, pat.take(2, cu))
+            pat.add(data, 3, pat.take(3, dC_dlam * (b * b)[:, None, None]))
+            Jac = pat.matrix(pat.add(data, 7, pat.take(7, dil_vals)))
+            del data
+            if self.layout is not None:
+                Jac = OwnedRows(Jac, self.layout)
         free, ff = mech.free, self.flow_free
         su = max(np.linalg.norm(F), np.linalg.norm(Au), np.linalg.norm(Bl), np.linalg.norm(Gp), 1e-300)
         # flow: each kind of equation against the sum of the magnitudes of its own terms (docs/
@@ -729,7 +777,6 @@ class Poromechanics:
             # the AMG of the pressure Schur block needs the scaled image of a constant pressure
             self.solver.pressure_nullspace = 1.0 / sf
         ar, ac = self._af_rc
-        g_vals = (self._g_u[0] * sf[self._g_u[1]], self._g_p[0] * sf[self._g_p[1]])   # pressures scaled by s
         af_vals = local_rows(A_dt).data[self._af_keep] * sf[ar] * sf[ac]  # rows and columns scaled by s
         # magnitudes of the flow terms at t^{n−1} (the old storage, the old displacement's part of
         # the Biot term, Δt A_f p^{n−1}): the round-off of a Newton step from the old state is
@@ -744,11 +791,23 @@ class Poromechanics:
         # the fixed blocks and the step's coupling and flow blocks; no block of 2–3 shares an entry
         # with 4–6 (contact rows against displacement and pressure rows), so adding 4–6 before them
         # gives pat.fill's sums bit for bit
-        pat, cs = self.pattern, self._coupling_sign
-        j_step = (pat.put if self._a_distinct else pat.add)(pat.zeros(), 0, pat.take(0, mech.elastic_block_values()))
-        pat.add(j_step, 1, self._bt_vals)
-        j_step = pat.add(pat.add(pat.add(j_step, 4, -cs * g_vals[0]), 5, -g_vals[1]), 6, -af_vals)
-        del g_vals, af_vals
+        cs = self._coupling_sign
+        if self.blockwise:
+            # the step's pressure blocks (u, λ blocks: per iterate, from the mechanics model)
+            up, up_vals, up_col = self._blocks["up"]
+            pu, pu_vals, pu_row = self._blocks["pu"]
+            f_ptr, f_col = self._blocks["pp"]
+            npf = self.flow_free.size
+            j_step = (up.fill(-cs * (up_vals * sf[up_col])), pu.add(pu.zeros(), 0, -(pu_vals * sf[pu_row])),
+                      sp.csr_array((-af_vals, f_col, f_ptr), shape=(npf, npf)))
+        else:
+            g_vals = (self._g_u[0] * sf[self._g_u[1]], self._g_p[0] * sf[self._g_p[1]])   # pressures scaled by s
+            pat = self.pattern
+            j_step = (pat.put if self._a_distinct else pat.add)(pat.zeros(), 0, pat.take(0, mech.elastic_block_values()))
+            pat.add(j_step, 1, self._bt_vals)
+            j_step = pat.add(pat.add(pat.add(j_step, 4, -cs * g_vals[0]), 5, -g_vals[1]), 6, -af_vals)
+            del g_vals
+        del af_vals
         ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old), rel_old)
         x0 = np.concatenate([u_old[mech.free], (mech.patch_values(old.lam) / mech.law.beta[:, None]).ravel(),
                              old.p[self.flow_free] / sf])

@@ -52,6 +52,8 @@ import scipy.sparse.linalg as spla
 from ..core import live
 from ..core.errors import RunError
 from ..core.interruptible import interruptible
+from ..core.csr import csr_positions_in_rows
+from .block_jacobian import BlockJacobian, FreeBlock, abs_matvec, block_diag_csr
 from .linear import repeatable_random
 from .timing import SPLIT
 
@@ -219,16 +221,17 @@ class ContactCondensation:
     rho: float = 0.1
 
     def condense(self, A, Bt, Cu, Cl):
-        """(Cl̂⁻¹ csr, Cû csr, S csr) for the blocks of one Jacobian."""
+        """(Cl̂⁻¹ csr, Cû csr, S csr) for the blocks of one Jacobian (A csr or a
+        :class:`~.block_jacobian.FreeBlock`)."""
         nf, d = self.normal.shape
         if nf == 0:
-            return sp.csr_matrix((0, 0)), Cu, sp.csr_matrix(A)
+            return sp.csr_matrix((0, 0)), Cu, _restricted(A)
         c, n = self.scale, self.normal
         DP = np.eye(d)[None] - _diag_blocks(Cl, nf, d) / c[:, None, None]
         DPn = np.einsum("fij,fj->fi", DP, n)
         g = DPn - np.einsum("fi,fi->f", n, DPn)[:, None] * n          # zero unless the face slips
         DPs = DP - np.einsum("fi,fj->fij", g, n)
-        Cinv = _block_diag_csr(np.linalg.inv(c[:, None, None] * (np.eye(d)[None] - (1.0 - self.rho) * DPs)))
+        Cinv = block_diag_csr(np.linalg.inv(c[:, None, None] * (np.eye(d)[None] - (1.0 - self.rho) * DPs)))
         # Cu = −c DP [[·]]; on closed faces nᵀ DP = nᵀ, so nᵀ Cu_σ = −c nᵀ[[·]] and
         # −c DP̂ [[·]] = Cu_σ − g (nᵀ Cu_σ)
         N = sp.csr_matrix((n.ravel(), (np.repeat(np.arange(nf), d), np.arange(nf * d))), shape=(nf, nf * d))
@@ -238,7 +241,25 @@ class ContactCondensation:
         # symmetrised, so that S is built once rather than as S, Sᵀ, S + Sᵀ and ½(S + Sᵀ) (380
         # against ~100 MB of temporaries on the 30,000-cell study)
         P = (Bt @ Cinv @ Cu_s).tocsr()
-        return Cinv, Cu_s, sp.csr_matrix(A - 0.5 * (P + P.T))
+        Q = (0.5 * (P + P.T)).tocoo()
+        S = _restricted(A)
+        S.sort_indices()
+        pos, found = csr_positions_in_rows(S, Q.row, Q.col)
+        if found.all():
+            # the models' elastic matrices hold the contact couplings (explicit zeros, models/
+            # mechanics.py): S is A's restriction with those entries changed, no sparse sum (whose
+            # temporaries were the Newton iteration's peak: +1 GB on the 10⁵-cell grid)
+            S.data[pos] -= Q.data             # Q is coalesced: distinct positions
+            return Cinv, Cu_s, S
+        return Cinv, Cu_s, sp.csr_matrix(S - Q.tocsr())
+
+
+def _restricted(A) -> sp.csr_matrix:
+    """A as a csr matrix with data of its own (structure possibly shared)."""
+    if isinstance(A, FreeBlock):
+        return A.tocsr()
+    A = sp.csr_matrix(A)
+    return sp.csr_matrix((A.data.copy(), A.indices, A.indptr), shape=A.shape)
 
 
 @dataclass
@@ -258,6 +279,7 @@ class BlockContactSolver:
     """
 
     takes_target = True          # solve() accepts Newton's KrylovTarget (weights, forcing term)
+    takes_blocks = True          # solve() accepts a BlockJacobian (models then assemble no matrix)
     n_u: int
     d: int
     condensation: ContactCondensation
@@ -280,13 +302,12 @@ class BlockContactSolver:
     def solve(self, J, rhs, target=None) -> np.ndarray:
         """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
         t0 = time.perf_counter()
-        J = sp.csr_matrix(J)
         n_u = self.n_u
+        if not isinstance(J, BlockJacobian):
+            J = BlockJacobian.from_csr(J, n_u, J.shape[0] - n_u)
         with SPLIT.timed("preconditioner", "block preconditioner set-up"):
-            A, Bt = J[:n_u, :n_u], J[:n_u, n_u:]
-            Cu, Cl = J[n_u:, :n_u], J[n_u:, n_u:]
-            Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
-            del A, Cl
+            Bt = J.ul
+            Cinv, Cu_s, S = self.condensation.condense(J.uu, Bt, J.lu, J.ll)
             Ms = self._s(S)
             del S
 
@@ -305,7 +326,6 @@ class BlockContactSolver:
 
 # Tight solves (rtol below this) first estimate the accuracy the weighted norm allows.
 FLOOR_CHECK = 1e-4
-_ABS_CHUNK = 2_000_000          # nonzeros per chunk of |J| |x| (no copy of J's values)
 
 
 def attainable_rtol(J, x, w, bnorm: float) -> float:
@@ -319,18 +339,10 @@ def attainable_rtol(J, x, w, bnorm: float) -> float:
 
     Parameters
     ----------
-    J : (n, n) csr;  x : (n,) an (approximate) solution;  w : (n,) row weights;  bnorm : ‖w∘b‖
+    J : (n, n) csr or :class:`~.block_jacobian.BlockJacobian`;  x : (n,) an (approximate) solution;
+        w : (n,) row weights;  bnorm : ‖w∘b‖
     """
-    J = sp.csr_matrix(J)
-    ax = np.abs(x)
-    out = np.empty(J.shape[0])
-    ip = J.indptr
-    edges = np.searchsorted(ip, np.arange(0, ip[-1] + _ABS_CHUNK, _ABS_CHUNK), side="right") - 1
-    edges = np.unique(np.r_[0, np.clip(edges, 0, J.shape[0]), J.shape[0]])
-    for a, b in zip(edges[:-1], edges[1:]):
-        s, e = ip[a], ip[b]
-        out[a:b] = sp.csr_matrix((np.abs(J.data[s:e]), J.indices[s:e], ip[a:b + 1] - s),
-                                 shape=(b - a, J.shape[1])) @ ax
+    out = abs_matvec(J, np.abs(x))
     return float(np.finfo(float).eps * np.linalg.norm(w * out) / bnorm)
 
 
@@ -435,13 +447,6 @@ def _diag_blocks(C, nf: int, d: int) -> np.ndarray:
     return out
 
 
-def _block_diag_csr(blocks: np.ndarray) -> sp.csr_matrix:
-    nf, d, _ = blocks.shape
-    rows = (np.arange(nf)[:, None, None] * d + np.arange(d)[None, :, None]) + 0 * np.arange(d)[None, None, :]
-    cols = (np.arange(nf)[:, None, None] * d + np.arange(d)[None, None, :]) + 0 * np.arange(d)[None, :, None]
-    return sp.csr_matrix((blocks.ravel(), (rows.ravel(), cols.ravel())), shape=(nf * d, nf * d))
-
-
 class _PressureSolve:
     """Ŝ_p⁻¹ (module docstring), rebuilt only when the flow block F changes (once per time step)."""
 
@@ -529,6 +534,7 @@ class BlockPoroSolver:
     """
 
     takes_target = True          # solve() accepts Newton's KrylovTarget (weights, forcing term)
+    takes_blocks = True          # solve() accepts a BlockJacobian (models then assemble no matrix)
     n_u: int
     d: int
     n_l: int
@@ -566,16 +572,14 @@ class BlockPoroSolver:
     def solve(self, J, rhs, target=None) -> np.ndarray:
         """x with J x ≈ rhs: J (n, n) sparse, rhs (n,); ``target`` a KrylovTarget or None (rtol)."""
         t0 = time.perf_counter()
-        J = sp.csr_matrix(J)
         nu, nl = self.n_u, self.n_l
         po = nu + nl
+        if not isinstance(J, BlockJacobian):
+            J = BlockJacobian.from_csr(J, nu, nl)
         with SPLIT.timed("preconditioner", "block preconditioner set-up"):
-            A, Bt, Gup = J[:nu, :nu], J[:nu, nu:po], J[:nu, po:]
-            Cu, Cl = J[nu:po, :nu], J[nu:po, nu:po]
-            Gpu, F = J[po:, :nu], J[po:, po:]
-            Cinv, Cu_s, S = self.condensation.condense(A, Bt, Cu, Cl)
-            self._p.update(F, Gpu, Gup, A.diagonal(), self.pressure_nullspace, self.pressure_groups)
-            del A, Cl, F                      # GMRES multiplies by J itself: only S's set-up stays
+            Bt, Gpu = J.ul, J.pu
+            Cinv, Cu_s, S = self.condensation.condense(J.uu, Bt, J.lu, J.ll)
+            self._p.update(J.pp, Gpu, J.up, J.uu.diagonal(), self.pressure_nullspace, self.pressure_groups)
             Mu, Mp = self._s(S), self._p.apply
             del S
 

@@ -1,0 +1,184 @@
+"""A Newton Jacobian held by its blocks, for the block solvers (no assembled copy).
+
+The coupled Jacobian (docs/choices.md, block solvers) is
+
+    [ A    Bt   Gup ]      u: free displacement dofs
+    [ Cu   Cl   0   ]      l: scaled multipliers (d per contact patch)
+    [ Gpu  0    F   ]      p: free pressure unknowns (absent in contact mechanics)
+
+Assembled into one CSR matrix it repeats A, the largest block, and GMRES, the condensation and
+the fixed-stress pressure operator only ever use the blocks. Held by blocks, A is the model's own
+elastic matrix restricted to the free dofs (`FreeBlock`: no copy), and the assembled pattern of the
+whole Jacobian (its slot list and indices, int32 each per entry), its fixed part and its data
+(float64 each per entry) are never made: on the 10⁵-cell weak-scaling grid 0.85 GB of the 4.1 GB
+per Newton iteration (docs/iterative_cornerpoint.md, sixth session).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+_ABS_CHUNK = 2_000_000          # nonzeros per chunk of |M| |x| (no copy of M's values)
+
+
+def abs_matvec(M, ax: np.ndarray) -> np.ndarray:
+    """|M| ax for a csr M (ax ≥ 0), chunk by chunk of rows: no nnz-sized copy of |M.data|."""
+    if hasattr(M, "abs_matvec"):
+        return M.abs_matvec(ax)
+    M = sp.csr_matrix(M)
+    out = np.empty(M.shape[0])
+    ip = M.indptr
+    edges = np.searchsorted(ip, np.arange(0, ip[-1] + _ABS_CHUNK, _ABS_CHUNK), side="right") - 1
+    edges = np.unique(np.r_[0, np.clip(edges, 0, M.shape[0]), M.shape[0]])
+    for a, b in zip(edges[:-1], edges[1:]):
+        s, e = ip[a], ip[b]
+        out[a:b] = sp.csr_matrix((np.abs(M.data[s:e]), M.indices[s:e], ip[a:b + 1] - s),
+                                 shape=(b - a, M.shape[1])) @ ax
+    return out
+
+
+def block_diag_csr(blocks: np.ndarray) -> sp.csr_matrix:
+    """(n d, n d) csr of the dense diagonal blocks (n, d, d) (every entry stored, zeros too)."""
+    n, d, _ = blocks.shape
+    indptr = np.arange(n * d + 1, dtype=np.int64) * d
+    indices = (np.arange(n)[:, None, None] * d + np.arange(d)[None, None, :] + 0 * np.arange(d)[None, :, None])
+    return sp.csr_matrix((np.asarray(blocks, float).ravel(), indices.ravel(), indptr), shape=(n * d, n * d))
+
+
+class FreeBlock:
+    """A[free][:, free] of a square csr A (sorted indices), used without a copy of A.
+
+    ``@`` embeds x in the full numbering (zeros on the other dofs), multiplies by A and restricts;
+    :meth:`tocsr` gives the restricted matrix with fresh data on a structure computed once and
+    shared by every call (the condensed S is built on it, ``block_contact``).
+
+    Parameters
+    ----------
+    A : (n, n) csr, sorted indices;  free : (m,) int, increasing
+    """
+
+    def __init__(self, A, free: np.ndarray):
+        self.A = A
+        self.free = np.asarray(free)
+        m = self.free.size
+        self.shape = (m, m)
+        self.dtype = np.dtype(float)
+        self._struct = None            # (indptr, indices, mask of A's entries kept)
+
+    def _structure(self):
+        if self._struct is None:
+            A, n = self.A, self.A.shape[0]
+            it = A.indices.dtype
+            index = np.full(n, -1, it)
+            index[self.free] = np.arange(self.free.size, dtype=it)
+            rows = np.repeat(index, np.diff(A.indptr))
+            cols = index[A.indices]
+            keep = (rows >= 0) & (cols >= 0)
+            del rows
+            indices = cols[keep]
+            del cols
+            counts = _row_counts(keep, A.indptr, self.free)
+            indptr = np.zeros(self.free.size + 1, it)
+            np.cumsum(counts, out=indptr[1:])
+            self._struct = (indptr, indices, keep)
+        return self._struct
+
+    def tocsr(self) -> sp.csr_matrix:
+        """(m, m) csr A_ff: new data, the shared (cached) structure."""
+        indptr, indices, keep = self._structure()
+        return sp.csr_matrix((self.A.data[keep], indices, indptr), shape=self.shape)
+
+    def diagonal(self) -> np.ndarray:
+        return self.A.diagonal()[self.free]
+
+    def __matmul__(self, x):
+        y = np.zeros(self.A.shape[1])
+        y[self.free] = x
+        return (self.A @ y)[self.free]
+
+    def abs_matvec(self, ax: np.ndarray) -> np.ndarray:
+        y = np.zeros(self.A.shape[1])
+        y[self.free] = ax
+        return abs_matvec(self.A, y)[self.free]
+
+
+def _row_counts(keep: np.ndarray, indptr: np.ndarray, rows: np.ndarray) -> np.ndarray:
+    """Kept entries per row for the given rows (keep (nnz,) bool in CSR order)."""
+    c = np.zeros(keep.size + 1, np.int64)
+    np.cumsum(keep, out=c[1:])
+    return c[indptr[rows + 1]] - c[indptr[rows]]
+
+
+@dataclass
+class BlockJacobian:
+    """The Newton Jacobian [[A, Bt, Gup], [Cu, Cl, 0], [Gpu, 0, F]] by blocks (module docstring).
+
+    Blocks are csr matrices (``uu`` may be a :class:`FreeBlock`); the pressure blocks are None in
+    contact mechanics. Supports ``J @ x`` (x (n,)), :meth:`abs_matvec` and :meth:`tocsr`.
+    """
+
+    uu: object
+    ul: object
+    lu: object
+    ll: object
+    up: object = None
+    pu: object = None
+    pp: object = None
+
+    def __post_init__(self):
+        self.n_u, self.n_l = self.uu.shape[0], self.ll.shape[0]
+        self.n_p = 0 if self.pp is None else self.pp.shape[0]
+        n = self.n_u + self.n_l + self.n_p
+        self.shape = (n, n)
+        self.dtype = np.dtype(float)
+        self.ndim = 2
+
+    @classmethod
+    def from_csr(cls, J, n_u: int, n_l: int) -> "BlockJacobian":
+        """The blocks of an assembled Jacobian (copies of its slices)."""
+        J = sp.csr_matrix(J)
+        po = n_u + n_l
+        if po == J.shape[0]:
+            return cls(J[:n_u, :n_u], J[:n_u, n_u:], J[n_u:, :n_u], J[n_u:, n_u:])
+        return cls(J[:n_u, :n_u], J[:n_u, n_u:po], J[n_u:po, :n_u], J[n_u:po, n_u:po],
+                   J[:n_u, po:], J[po:, :n_u], J[po:, po:])
+
+    def _split(self, x):
+        nu, po = self.n_u, self.n_u + self.n_l
+        return x[:nu], x[nu:po], x[po:]
+
+    def _apply(self, x, f):
+        xu, xl, xp = self._split(np.asarray(x, float).ravel())
+        yu = f(self.uu, xu) + f(self.ul, xl)
+        yl = f(self.lu, xu) + f(self.ll, xl)
+        if self.pp is None:
+            return np.concatenate([yu, yl])
+        yu += f(self.up, xp)
+        yp = f(self.pu, xu) + f(self.pp, xp)
+        return np.concatenate([yu, yl, yp])
+
+    def __matmul__(self, x):
+        return self._apply(x, lambda M, v: M @ v)
+
+    def dot(self, x):
+        return self @ x
+
+    matvec = dot
+
+    def abs_matvec(self, ax: np.ndarray) -> np.ndarray:
+        """|J| ax (ax ≥ 0), block by block."""
+        return self._apply(ax, abs_matvec)
+
+    def tocsr(self) -> sp.csr_matrix:
+        """The assembled Jacobian (tests, dumps, direct fall-backs)."""
+        def m(M):
+            return M.tocsr() if isinstance(M, FreeBlock) else M
+        rows = [[m(self.uu), self.ul], [self.lu, self.ll]]
+        if self.pp is not None:
+            rows[0].append(self.up)
+            rows[1].append(None)
+            rows.append([self.pu, None, self.pp])
+        return sp.csr_matrix(sp.bmat(rows, format="csr"))
