@@ -105,12 +105,14 @@ class _Factorised:
 
 def _amg_hierarchy(S, B=None):
     """pyamg's smoothed-aggregation hierarchy of S (rigid-body near-null space B)."""
-    import pyamg
+    from .amg_setup import sa_hierarchy
 
     # splu on the coarsest level: pyamg's default dense pinv is recomputed per cycle in some
-    # versions (2 s per V-cycle on C5's 28k-dof block instead of 0.05 s)
+    # versions (2 s per V-cycle on C5's 28k-dof block instead of 0.05 s); the finest level built
+    # without pyamg's copies of S (amg_setup.py: the same hierarchy, 1.5 GB less set-up peak on the
+    # 10⁵-cell grid)
     with repeatable_random():        # the set-up's random start vectors (linear.repeatable_random)
-        return pyamg.smoothed_aggregation_solver(S, B=B, strength="symmetric", max_coarse=1000, coarse_solver="splu")
+        return sa_hierarchy(S, B, max_coarse=1000, coarse_solver="splu")
 
 
 def _amg(S, B=None):
@@ -142,7 +144,8 @@ class _CondensedSolve:
     With AMG, a changed S keeps the AMG hierarchy (aggregates, transfers, coarse operators) of
     an earlier S while it differs from that one on few rows (``REUSE_ROWS`` of them changed
     diagonal: the condensed contact rows of fault dofs); S replaces the finest operator and its
-    smoother (`_refit`) and the line smoother is built on S itself. On the weak-scaling and
+    smoother (`_refit`), and in 3D the line smoother keeps its lines, colours and renumbering and
+    takes S's values (:meth:`.line_smoother.LineSmoothedAMG.refit`). On the weak-scaling and
     30,000-cell systems (day 1's hierarchy on day 3's with faces opened and slipping) the coupled
     GMRES counts stay the same (9, 12, 33 against 9, 12, 32; 17, 4, 21 against the same), and the
     10⁴-cell weak-scaling run's preconditioner set-up fell from 43 to 11.5 s.
@@ -154,22 +157,52 @@ class _CondensedSolve:
         self.mechanics, self.near_nullspace = mechanics, near_nullspace
         self._key = self._op = None
         self._ml = self._ml_diag = None        # the kept hierarchy and its S's diagonal
+        self._ls = None                        # the kept line smoother (3D), around self._ml
         self.setups = 0                        # operators made (a new S)
         self.hierarchies = 0                   # AMG hierarchies built among them
+
+    def _close(self, d) -> bool:
+        """Whether the kept hierarchy serves an S with diagonal d (few rows changed)."""
+        d0 = self._ml_diag
+        return self._ml is not None and d0.shape == d.shape and \
+            np.count_nonzero(np.abs(d - d0) > 1e-12 * np.abs(d0)) <= REUSE_ROWS * d.size
 
     def _hierarchy(self, S):
         """An AMG hierarchy fitted to S: the kept one when S is close to its own, else a new one."""
         d = S.diagonal()
-        ml, d0 = self._ml, self._ml_diag
-        if ml is not None and d0.shape == d.shape and \
-                np.count_nonzero(np.abs(d - d0) > 1e-12 * np.abs(d0)) <= REUSE_ROWS * d.size:
-            _refit(ml, S)
-            return ml
+        if self._close(d):
+            _refit(self._ml, S)
+            return self._ml
         self._ml = None
         ml = _amg_hierarchy(S, self.near_nullspace)
         self._ml, self._ml_diag = ml, d
         self.hierarchies += 1
         return ml
+
+    def _line_smoothed(self, S):
+        """The line-smoothed AMG of S (3D): the kept one refitted while S is close to its S (its
+        lines, colours, renumbering and hierarchy kept), else a new one."""
+        from .line_smoother import LineSmoothedAMG
+
+        d = S.diagonal()
+        ls = self._ls
+        if ls is not None and self._close(d):
+            self._ml.levels[0].A = None         # the old S_p goes before the new one is made
+            try:
+                return ls.refit(S, lambda Sp: _refit(self._ml, Sp) or self._ml.aspreconditioner(cycle="V"))
+            except ValueError:                  # another pattern (not from the models): start again
+                pass
+        self._ls = self._ml = None
+
+        def factory(Sp, Bp):
+            self._ml = _amg_hierarchy(Sp, Bp)
+            return self._ml.aspreconditioner(cycle="V")
+
+        with repeatable_random():
+            ls = LineSmoothedAMG(S, self.near_nullspace, factory)
+        self._ls, self._ml_diag = ls, d
+        self.hierarchies += 1
+        return ls
 
     @staticmethod
     def _digest(S) -> tuple:
@@ -190,11 +223,7 @@ class _CondensedSolve:
         elif B is not None and np.ndim(B) == 2 and B.shape[1] == 6:
             # 3D: line Gauss–Seidel around the V-cycle (line_smoother.py): on flat cells the
             # point smoothers miss the short edges' direction (PCG on emerald's S: 176 -> 101)
-            from .line_smoother import LineSmoothedAMG
-
-            ml = self._hierarchy(S)
-            with repeatable_random():
-                self._op = LineSmoothedAMG(S, B, lambda S_, B_: ml.aspreconditioner(cycle="V"))
+            self._op = self._line_smoothed(S)
         else:
             self._op = self._hierarchy(S).aspreconditioner(cycle="V")
         self._key = key
@@ -202,7 +231,7 @@ class _CondensedSolve:
         return self._op
 
     def release(self) -> None:
-        self._op = self._key = self._ml = self._ml_diag = None
+        self._op = self._key = self._ml = self._ml_diag = self._ls = None
 
 
 @dataclass
