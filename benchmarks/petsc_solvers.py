@@ -69,7 +69,7 @@ def build_elasticity(n: int, ranks: list[int]) -> Path:
         data = MechanicsData(mu=np.full(nc, 4.0e9), lam=np.full(nc, 3.0e9),
                              displacement=[DisplacementBC("zmin", (0, 1, 2), lambda X, t: 0 * X)])
         P = ContactMechanics(fm, data)
-        A = sp.csr_matrix(P.A[P.free][:, P.free])
+        A = sp.csr_matrix(P.A.tocsr()[P.free][:, P.free])
         B = P.rigid_modes()
         b = np.zeros(A.shape[0])
         b[2::3] = -1.0 / A.shape[0]                     # a uniform downward load

@@ -27,7 +27,7 @@ def elasticity(n: int = 6):
     nc = mesh.n_cells
     P = ContactMechanics(fm, MechanicsData(mu=np.full(nc, 4.0e9), lam=np.full(nc, 3.0e9),
                                            displacement=[DisplacementBC("zmin", (0, 1, 2), lambda X, t: 0 * X)]))
-    A = sp.csr_matrix(P.A[P.free][:, P.free])
+    A = sp.csr_matrix(P.A.tocsr()[P.free][:, P.free])
     b = np.zeros(A.shape[0])
     b[2::3] = -1.0
     b += 0.1 * np.sin(np.arange(A.shape[0]))          # not only a smooth load

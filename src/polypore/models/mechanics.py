@@ -29,7 +29,7 @@ from ..discretisation import DisplacementSpace, Operators, QuadraticOperators, Q
 from ..discretisation.contact_patches import contact_patches
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
-from ..solvers.block_jacobian import BlockJacobian, FreeBlock, block_diag_csr
+from ..solvers.block_jacobian import BlockJacobian, FreeSplit, block_diag_csr
 from ..solvers.distributed import OwnedRows, RowBlock, local_rows, min_owner, owned_layout, register_layout
 from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
@@ -296,7 +296,9 @@ class ContactMechanics:
         # whose rows this rank assembles, and of all displacement dofs, whose rows of A it keeps
         self.layout = owned_layout(mesh, self.dof_owner)
         self.dof_layout = owned_layout(mesh, lambda part: np.repeat(self.slot_owner(part), d))
-        self.A = RowBlock.of(self.A, self.dof_layout)
+        # serially A is kept as its free block and the rest (FreeSplit): the block solvers take the
+        # free block as it is; under mpiexec each rank keeps its rows
+        self.A = FreeSplit(self.A, self.free) if self.dof_layout is None else RowBlock.of(self.A, self.dof_layout)
         self.solver = solver or LinearSolver("auto")
         backend = getattr(self.solver, "backend", None)
         if backend in ("block-amg", "block-direct", "block-petsc"):
@@ -306,7 +308,7 @@ class ContactMechanics:
             self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8,
                                             petsc=backend == "block-petsc", options=self.solver.petsc_options,
                                             mechanics="direct" if backend == "block-direct" else "amg")
-        self.pattern = self._fixed_vals = self._blocks = self._uu = None
+        self.pattern = self._fixed_vals = self._blocks = None
         if self.blockwise:
             self._setup_blocks(J)
         else:
@@ -444,6 +446,9 @@ class ContactMechanics:
     def _free_block(self):
         """A as coo (this rank's rows on N ranks), the free numbers of its rows and columns, and
         the mask of its entries in free rows and columns."""
+        if isinstance(self.A, FreeSplit):
+            A = self.A.ff.tocoo()                 # the free block's entries, in A's order
+            return A, A.row, A.col, np.ones(A.nnz, bool)
         A = local_rows(self.A).tocoo()
         arow = A.row if self.dof_layout is None else self.dof_layout.owned[A.row]
         fr, fc = self.free_index[arow], self.free_index[A.col]
@@ -506,12 +511,9 @@ class ContactMechanics:
         assembled matrix, A used in place (solvers/block_jacobian.py)."""
         return bool(getattr(self.solver, "takes_blocks", False)) and self.layout is None
 
-    def free_block(self):
-        """A restricted to the free dofs, without a copy (:class:`~..solvers.block_jacobian.FreeBlock`;
-        its restricted structure is made once and shared)."""
-        if self._uu is None:
-            self._uu = FreeBlock(self.A, self.free)
-        return self._uu
+    def free_block(self) -> sp.csr_matrix:
+        """A restricted to the free dofs (csr, free numbering; serial runs), not a copy."""
+        return self.A.ff
 
     def _cu_entries(self, J):
         """(rows, cols, keep): the C_u contributions, row (patch σ, i), col (free number of slot a,

@@ -28,7 +28,7 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 # Rows of S per block of the products S T and S P (bounds their temporaries)
-ROW_BLOCK = 100_000
+ROW_BLOCK = 25_000
 
 SMOOTHER = ("block_gauss_seidel", {"sweep": "symmetric"})       # pyamg's default for SA
 IMPROVE = ("block_gauss_seidel", {"sweep": "symmetric", "iterations": 4})

@@ -53,7 +53,7 @@ from ..core import live
 from ..core.errors import RunError
 from ..core.interruptible import interruptible
 from ..core.csr import csr_positions_in_rows
-from .block_jacobian import BlockJacobian, FreeBlock, abs_matvec, block_diag_csr
+from .block_jacobian import BlockJacobian, abs_matvec, block_diag_csr
 from .linear import repeatable_random
 from .timing import SPLIT
 
@@ -250,8 +250,8 @@ class ContactCondensation:
     rho: float = 0.1
 
     def condense(self, A, Bt, Cu, Cl):
-        """(Cl̂⁻¹ csr, Cû csr, S csr) for the blocks of one Jacobian (A csr or a
-        :class:`~.block_jacobian.FreeBlock`)."""
+        """(Cl̂⁻¹ csr, Cû csr, S csr) for the blocks of one Jacobian (S has data of its own and
+        shares A's index arrays)."""
         nf, d = self.normal.shape
         if nf == 0:
             return sp.csr_matrix((0, 0)), Cu, _restricted(A)
@@ -272,7 +272,6 @@ class ContactCondensation:
         P = (Bt @ Cinv @ Cu_s).tocsr()
         Q = (0.5 * (P + P.T)).tocoo()
         S = _restricted(A)
-        S.sort_indices()
         pos, found = csr_positions_in_rows(S, Q.row, Q.col)
         if found.all():
             # the models' elastic matrices hold the contact couplings (explicit zeros, models/
@@ -284,10 +283,10 @@ class ContactCondensation:
 
 
 def _restricted(A) -> sp.csr_matrix:
-    """A as a csr matrix with data of its own (structure possibly shared)."""
-    if isinstance(A, FreeBlock):
-        return A.tocsr()
+    """A as a csr matrix with data of its own (index arrays shared)."""
     A = sp.csr_matrix(A)
+    if not A.has_sorted_indices:            # (checked, not assumed) sorted: shared, never sorted in place
+        A = A.sorted_indices()
     return sp.csr_matrix((A.data.copy(), A.indices, A.indptr), shape=A.shape)
 
 
@@ -492,8 +491,9 @@ class _PressureSolve:
         """Rebuild for a new F. ``B`` the scaled constant (n_p,); ``groups`` (coarse, block) masks
         (n_p,) bool for :class:`~.pressure_twolevel.TwoLevelPressure` (without them "twolevel"
         falls back to smoothed aggregation on the whole block)."""
-        key = (F.shape, F.nnz)
-        if self._key is not None and self._key[0] == key and np.array_equal(self._key[1], F.data):
+        F = sp.csr_matrix(F)
+        key = _CondensedSolve._digest(F)        # not a copy of F's values (43 MB at 10⁵ cells)
+        if key == self._key:
             return
         # the previous step's set-up goes before the new one is made (its apply closure held the
         # old factors through the new factorisation); PARDISO keeps factors until told: without
@@ -527,7 +527,7 @@ class _PressureSolve:
             # iterations (22-28 -> 40-45 on a small C5)
             M = _amg(sign * 0.5 * (Sp + Sp.T), None if B is None else np.asarray(B, float).reshape(-1, 1))
             self.apply = lambda r: sign * (M @ r)
-        self._key = (key, F.data.copy())
+        self._key = key
         self.builds += 1
 
     def release(self) -> None:

@@ -8,7 +8,7 @@ The coupled Jacobian (docs/choices.md, block solvers) is
 
 Assembled into one CSR matrix it repeats A, the largest block, and GMRES, the condensation and
 the fixed-stress pressure operator only ever use the blocks. Held by blocks, A is the model's own
-elastic matrix restricted to the free dofs (`FreeBlock`: no copy), and the assembled pattern of the
+elastic matrix's free block (`FreeSplit`: the elastic matrix is stored that way), and the assembled pattern of the
 whole Jacobian (its slot list and indices, int32 each per entry), its fixed part and its data
 (float64 each per entry) are never made: on the 10⁵-cell weak-scaling grid 0.85 GB of the 4.1 GB
 per Newton iteration (docs/iterative_cornerpoint.md, sixth session).
@@ -48,12 +48,14 @@ def block_diag_csr(blocks: np.ndarray) -> sp.csr_matrix:
     return sp.csr_matrix((np.asarray(blocks, float).ravel(), indices.ravel(), indptr), shape=(n * d, n * d))
 
 
-class FreeBlock:
-    """A[free][:, free] of a square csr A (sorted indices), used without a copy of A.
+class FreeSplit:
+    """A square csr matrix A (n, n) stored as its free–free block and the rest.
 
-    ``@`` embeds x in the full numbering (zeros on the other dofs), multiplies by A and restricts;
-    :meth:`tocsr` gives the restricted matrix with fresh data on a structure computed once and
-    shared by every call (the condensed S is built on it, ``block_contact``).
+    ``ff`` is A[free][:, free] (csr, in the free numbering: the block solvers' A, and the base the
+    condensed S shares its indices with); ``rest`` holds A's entries in a fixed row or column (csr,
+    full numbering: the Dirichlet couplings and the reactions). ``A @ u`` and ``diagonal()`` are
+    A's; held this way the elastic matrix needs no separate restricted copy or index map for the
+    block solvers (1.3 kB per cell on the 10⁵-cell weak-scaling grid).
 
     Parameters
     ----------
@@ -61,62 +63,69 @@ class FreeBlock:
     """
 
     def __init__(self, A, free: np.ndarray):
-        self.A = A
+        A = sp.csr_matrix(A)
+        A.sort_indices()
+        n = A.shape[0]
         self.free = np.asarray(free)
-        m = self.free.size
-        self.shape = (m, m)
-        self.dtype = np.dtype(float)
-        self._struct = None            # (indptr, indices, mask of A's entries kept)
+        self.shape, self.dtype = A.shape, A.dtype
+        it = A.indices.dtype
+        index = np.full(n, -1, it)
+        index[self.free] = np.arange(self.free.size, dtype=it)
+        keep = np.repeat(index >= 0, np.diff(A.indptr))
+        keep &= index[A.indices] >= 0
+        self.ff = sp.csr_matrix((A.data[keep], index[A.indices[keep]], _kept_indptr(keep, A.indptr, self.free, it)),
+                                shape=(self.free.size,) * 2)
+        # the condensed S shares these index arrays: read-only, so that an in-place change of S's
+        # structure (eliminate_zeros, an unsorted sort) raises instead of corrupting A
+        self.ff.indices.flags.writeable = self.ff.indptr.flags.writeable = False
+        drop = ~keep
+        del keep
+        self.rest = sp.csr_matrix((A.data[drop], A.indices[drop], _kept_indptr(drop, A.indptr, np.arange(n), it)),
+                                  shape=A.shape)
 
-    def _structure(self):
-        if self._struct is None:
-            A, n = self.A, self.A.shape[0]
-            it = A.indices.dtype
-            index = np.full(n, -1, it)
-            index[self.free] = np.arange(self.free.size, dtype=it)
-            rows = np.repeat(index, np.diff(A.indptr))
-            cols = index[A.indices]
-            keep = (rows >= 0) & (cols >= 0)
-            del rows
-            indices = cols[keep]
-            del cols
-            counts = _row_counts(keep, A.indptr, self.free)
-            indptr = np.zeros(self.free.size + 1, it)
-            np.cumsum(counts, out=indptr[1:])
-            self._struct = (indptr, indices, keep)
-        return self._struct
-
-    def tocsr(self) -> sp.csr_matrix:
-        """(m, m) csr A_ff: new data, the shared (cached) structure."""
-        indptr, indices, keep = self._structure()
-        return sp.csr_matrix((self.A.data[keep], indices, indptr), shape=self.shape)
-
-    def diagonal(self) -> np.ndarray:
-        return self.A.diagonal()[self.free]
+    @property
+    def nnz(self) -> int:
+        return self.ff.nnz + self.rest.nnz
 
     def __matmul__(self, x):
-        y = np.zeros(self.A.shape[1])
-        y[self.free] = x
-        return (self.A @ y)[self.free]
+        x = np.asarray(x, float)
+        y = self.rest @ x
+        y[self.free] += self.ff @ x[self.free]
+        return y
 
-    def abs_matvec(self, ax: np.ndarray) -> np.ndarray:
-        y = np.zeros(self.A.shape[1])
-        y[self.free] = ax
-        return abs_matvec(self.A, y)[self.free]
+    def diagonal(self) -> np.ndarray:
+        d = self.rest.diagonal()
+        d[self.free] = self.ff.diagonal()
+        return d
+
+    def tocoo(self) -> sp.coo_matrix:
+        """A (n, n) as coo (free–free entries first)."""
+        f, r = self.ff.tocoo(), self.rest.tocoo()
+        return sp.coo_matrix((np.concatenate([f.data, r.data]), (np.concatenate([self.free[f.row], r.row]),
+                                                                   np.concatenate([self.free[f.col], r.col]))),
+                             shape=self.shape)
+
+    def tocsr(self) -> sp.csr_matrix:
+        return self.tocoo().tocsr()
+
+    def tocsc(self) -> sp.csc_matrix:
+        return self.tocoo().tocsc()
 
 
-def _row_counts(keep: np.ndarray, indptr: np.ndarray, rows: np.ndarray) -> np.ndarray:
-    """Kept entries per row for the given rows (keep (nnz,) bool in CSR order)."""
+def _kept_indptr(keep: np.ndarray, indptr: np.ndarray, rows: np.ndarray, dtype) -> np.ndarray:
+    """CSR row pointer of the entries ``keep`` (nnz,) bool of the given rows, in their order."""
     c = np.zeros(keep.size + 1, np.int64)
     np.cumsum(keep, out=c[1:])
-    return c[indptr[rows + 1]] - c[indptr[rows]]
+    out = np.zeros(rows.size + 1, dtype)
+    np.cumsum(c[indptr[rows + 1]] - c[indptr[rows]], out=out[1:])
+    return out
 
 
 @dataclass
 class BlockJacobian:
     """The Newton Jacobian [[A, Bt, Gup], [Cu, Cl, 0], [Gpu, 0, F]] by blocks (module docstring).
 
-    Blocks are csr matrices (``uu`` may be a :class:`FreeBlock`); the pressure blocks are None in
+    Blocks are csr matrices (``uu`` the ``ff`` of a :class:`FreeSplit`); the pressure blocks are None in
     contact mechanics. Supports ``J @ x`` (x (n,)), :meth:`abs_matvec` and :meth:`tocsr`.
     """
 
@@ -174,9 +183,7 @@ class BlockJacobian:
 
     def tocsr(self) -> sp.csr_matrix:
         """The assembled Jacobian (tests, dumps, direct fall-backs)."""
-        def m(M):
-            return M.tocsr() if isinstance(M, FreeBlock) else M
-        rows = [[m(self.uu), self.ul], [self.lu, self.ll]]
+        rows = [[self.uu, self.ul], [self.lu, self.ll]]
         if self.pp is not None:
             rows[0].append(self.up)
             rows[1].append(None)

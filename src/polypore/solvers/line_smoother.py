@@ -25,7 +25,7 @@ from scipy.sparse.csgraph import connected_components, reverse_cuthill_mckee
 # Widest band (super-diagonals) factorised as a band; wider blocks go to SuperLU.
 MAX_BAND = 128
 # Rows of S per block when node couplings are summed (bounds the temporaries)
-ROW_BLOCK = 100_000
+ROW_BLOCK = 25_000
 
 
 def dof_nodes(B, tol=1e-8):

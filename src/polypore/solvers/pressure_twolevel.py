@@ -142,9 +142,10 @@ class TwoLevelPressure:
         c = np.ones(n) if constant is None else np.asarray(constant, float)
         # unscaled operator K = C M C (C = diag(constant)), positive definite: a constant is
         # ones here, so the face weights below reproduce it
-        K = sp.diags(c) @ (self.sign * 0.5 * (M + M.T)) @ sp.diags(c)
-        K = sp.csr_matrix(K)
+        K = sp.csr_matrix(M + M.T)
         K.sort_indices()
+        # scaled in place (the products with diagonal matrices made four more copies of M)
+        K.data *= (0.5 * self.sign) * np.repeat(c, np.diff(K.indptr)) * c[K.indices]
         if coarse is None or not np.any(coarse):
             raise ValueError("TwoLevelPressure needs a non-empty coarse set")
         C = np.flatnonzero(coarse)
