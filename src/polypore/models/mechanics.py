@@ -30,7 +30,7 @@ from ..discretisation.contact_patches import contact_patches
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
 from ..solvers.block_jacobian import BlockJacobian, FreeSplit, block_diag_csr
-from ..solvers.distributed import OwnedRows, RowBlock, local_rows, min_owner, owned_layout, register_layout
+from ..solvers.distributed import OwnedRows, SplitRowBlock, local_rows, min_owner, owned_layout, register_layout
 from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import LAWS, OPEN, PATCH_RATIO, SLIP, STICK, ContactLaw, linearise_contact
@@ -298,7 +298,8 @@ class ContactMechanics:
         self.dof_layout = owned_layout(mesh, lambda part: np.repeat(self.slot_owner(part), d))
         # serially A is kept as its free block and the rest (FreeSplit): the block solvers take the
         # free block as it is; under mpiexec each rank keeps its rows
-        self.A = FreeSplit(self.A, self.free) if self.dof_layout is None else RowBlock.of(self.A, self.dof_layout)
+        self.A = FreeSplit(self.A, self.free) if self.dof_layout is None else \
+            SplitRowBlock(self.A, self.dof_layout, self.free)
         self.solver = solver or LinearSolver("auto")
         backend = getattr(self.solver, "backend", None)
         if backend in ("block-amg", "block-direct", "block-petsc"):

@@ -337,6 +337,57 @@ class RowBlock:
         return self.local.nnz
 
 
+class SplitRowBlock(RowBlock):
+    """A RowBlock of a square matrix whose product follows the serial
+    :class:`~.block_jacobian.FreeSplit`'s order: each owned row sums its entries in free columns
+    (free rows only) and adds the sum of the others, so that distributed residuals stay the serial
+    ones bit for bit. ``local`` is assembled when asked for (set-up only).
+
+    Parameters
+    ----------
+    A : (n, n) csr, sorted indices, the serial matrix;  layout : DofLayout;  free : (m,) increasing
+    """
+
+    def __init__(self, A, layout: "DofLayout", free: np.ndarray):
+        L = sp.csr_matrix(A)[layout.owned]
+        L.sort_indices()
+        n = A.shape[0]
+        self.layout, self.shape = layout, (layout.n, L.shape[1])
+        self.free = np.asarray(free)
+        it = L.indices.dtype
+        index = np.full(n, -1, it)
+        index[self.free] = np.arange(self.free.size, dtype=it)
+        keep = np.repeat(index[layout.owned] >= 0, np.diff(L.indptr)) & (index[L.indices] >= 0)
+        rows = np.arange(L.shape[0])
+        from .block_jacobian import _kept_indptr
+
+        self._ff = sp.csr_matrix((L.data[keep], index[L.indices[keep]], _kept_indptr(keep, L.indptr, rows, it)),
+                                 shape=(L.shape[0], self.free.size))
+        drop = ~keep
+        self._rest = sp.csr_matrix((L.data[drop], L.indices[drop], _kept_indptr(drop, L.indptr, rows, it)),
+                                   shape=L.shape)
+
+    @property
+    def local(self) -> sp.csr_matrix:
+        ff, r = self._ff.tocoo(), self._rest.tocoo()
+        # coordinates, not a sum: the stored zeros (contact couplings) stay in the pattern
+        L = sp.coo_matrix((np.concatenate([ff.data, r.data]), (np.concatenate([ff.row, r.row]),
+                                                              np.concatenate([self.free[ff.col], r.col]))),
+                          shape=r.shape).tocsr()
+        L.sort_indices()
+        return L
+
+    @property
+    def nnz(self) -> int:
+        return self._ff.nnz + self._rest.nnz
+
+    def __matmul__(self, x):
+        x = np.asarray(x, float)
+        y = self._rest @ x
+        y += self._ff @ x[self.free]
+        return self.layout.gather(y)
+
+
 def local_rows(A):
     """The rows this rank holds of an operator: ``A.local`` of a :class:`RowBlock`, else A (serial)."""
     return A.local if isinstance(A, RowBlock) else A
