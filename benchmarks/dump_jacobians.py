@@ -46,11 +46,17 @@ class Recorder:
         passed on to an iterative inner solver (so the Newton path is the run's)."""
         return True
 
+    @property
+    def takes_blocks(self):
+        """As the inner solver: the model hands it the Jacobian by blocks (saved assembled)."""
+        return getattr(self.inner, "takes_blocks", False)
+
     def solve(self, J, rhs, target=None):
         self.k += 1
         tag = f"s{self.step:03d}_k{self.k:02d}"
         if self.step in self.save:
-            sp.save_npz(self.out / f"J_{tag}.npz", sp.csr_matrix(J), compressed=False)
+            sp.save_npz(self.out / f"J_{tag}.npz", sp.csr_matrix(J.tocsr() if hasattr(J, "tocsr") else J),
+                        compressed=False)
             np.save(self.out / f"rhs_{tag}.npy", np.asarray(rhs))
             np.save(self.out / f"pns_{tag}.npy", np.asarray(self.pressure_nullspace))
             if target is not None and target.weights is not None:

@@ -310,6 +310,9 @@ class ContactMechanics:
                                             petsc=backend == "block-petsc", options=self.solver.petsc_options,
                                             mechanics="direct" if backend == "block-direct" else "amg")
         self.pattern = self._fixed_vals = self._blocks = None
+        # the Jacobian goes to the solver by blocks (a block solver, one process): no assembled
+        # matrix, A's free block used in place (solvers/block_jacobian.py); fixed for the model
+        self.blockwise = bool(getattr(self.solver, "takes_blocks", False)) and self.layout is None
         if self.blockwise:
             self._setup_blocks(J)
         else:
@@ -505,12 +508,6 @@ class ContactMechanics:
         """Free the Jacobian's pattern and fixed values (the coupled model needs them for its
         initial equilibrium only); the next :meth:`linearise` builds them again."""
         self.pattern = self._fixed_vals = self._blocks = None
-
-    @property
-    def blockwise(self) -> bool:
-        """Whether the Jacobian goes to the solver by blocks (a block solver, one process): no
-        assembled matrix, A used in place (solvers/block_jacobian.py)."""
-        return bool(getattr(self.solver, "takes_blocks", False)) and self.layout is None
 
     def free_block(self) -> sp.csr_matrix:
         """A restricted to the free dofs (csr, free numbering; serial runs), not a copy."""

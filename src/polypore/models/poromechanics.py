@@ -353,6 +353,10 @@ class Poromechanics:
         self.n_unknowns = n
         self._setup_scaling()
         self._setup_solver()
+        # the Jacobian goes to the solver by blocks (a block solver on one process; no assembled
+        # matrix: solvers/block_jacobian.py); decided here, for the model's lifetime (a solver
+        # wrapped later, e.g. by benchmarks/dump_jacobians.py, gets what this one got)
+        self.blockwise = bool(getattr(self.solver, "takes_blocks", False)) and self.layout is None
         self.pattern = self._blocks = None
         J = mech.jump_scalar.tocoo()                                 # per face: the dilatant aperture
         # G: u rows × p columns (the rows of G this rank keeps), and p rows × u columns from the
@@ -393,11 +397,6 @@ class Poromechanics:
         if self.layout is not None:
             register_layout(self.solver, self.layout)
 
-    @property
-    def blockwise(self) -> bool:
-        """Whether the Jacobian goes to the solver by blocks (a block solver on one process; no
-        assembled matrix: solvers/block_jacobian.py)."""
-        return bool(getattr(self.solver, "takes_blocks", False)) and self.layout is None
 
     def _setup_solver(self):
         """The block solvers of ``solver.linear`` = block-amg, block-direct, block-petsc."""
