@@ -65,23 +65,12 @@ class FreeSplit:
     def __init__(self, A, free: np.ndarray):
         A = sp.csr_matrix(A)
         A.sort_indices()
-        n = A.shape[0]
         self.free = np.asarray(free)
         self.shape, self.dtype = A.shape, A.dtype
-        it = A.indices.dtype
-        index = np.full(n, -1, it)
-        index[self.free] = np.arange(self.free.size, dtype=it)
-        keep = np.repeat(index >= 0, np.diff(A.indptr))
-        keep &= index[A.indices] >= 0
-        self.ff = sp.csr_matrix((A.data[keep], index[A.indices[keep]], _kept_indptr(keep, A.indptr, self.free, it)),
-                                shape=(self.free.size,) * 2)
+        self.ff, self.rest = split_free(A, np.arange(A.shape[0]), self.free)
         # the condensed S shares these index arrays: read-only, so that an in-place change of S's
         # structure (eliminate_zeros, an unsorted sort) raises instead of corrupting A
         self.ff.indices.flags.writeable = self.ff.indptr.flags.writeable = False
-        drop = ~keep
-        del keep
-        self.rest = sp.csr_matrix((A.data[drop], A.indices[drop], _kept_indptr(drop, A.indptr, np.arange(n), it)),
-                                  shape=A.shape)
 
     @property
     def nnz(self) -> int:
@@ -110,6 +99,31 @@ class FreeSplit:
 
     def tocsc(self) -> sp.csc_matrix:
         return self.tocoo().tocsc()
+
+
+def split_free(L, row_global: np.ndarray, free: np.ndarray, all_rows: bool = False):
+    """(ff, rest) of rows of a square matrix: ff the entries in free rows and free columns (columns
+    in the free numbering), rest the others (full numbering, every row of L).
+
+    Parameters
+    ----------
+    L : (r, n) csr, sorted indices, rows of an (n, n) matrix;  row_global : (r,) their numbers
+    free : (m,) increasing;  all_rows : ff keeps every row of L (those not free empty), else only
+        the free rows, in order (L the whole matrix: ff is its free block)
+    """
+    it = L.indices.dtype
+    index = np.full(L.shape[1], -1, it)
+    index[free] = np.arange(free.size, dtype=it)
+    row_free = index[row_global] >= 0
+    keep = np.repeat(row_free, np.diff(L.indptr)) & (index[L.indices] >= 0)
+    ff_rows = np.arange(L.shape[0]) if all_rows else np.flatnonzero(row_free)
+    ff = sp.csr_matrix((L.data[keep], index[L.indices[keep]], _kept_indptr(keep, L.indptr, ff_rows, it)),
+                       shape=(ff_rows.size, free.size))
+    drop = ~keep
+    del keep
+    rest = sp.csr_matrix((L.data[drop], L.indices[drop], _kept_indptr(drop, L.indptr, np.arange(L.shape[0]), it)),
+                         shape=L.shape)
+    return ff, rest
 
 
 def _kept_indptr(keep: np.ndarray, indptr: np.ndarray, rows: np.ndarray, dtype) -> np.ndarray:

@@ -36,6 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..core.errors import InputError
+from .block_jacobian import split_free
 
 log = logging.getLogger("polypore")
 
@@ -351,21 +352,9 @@ class SplitRowBlock(RowBlock):
     def __init__(self, A, layout: "DofLayout", free: np.ndarray):
         L = sp.csr_matrix(A)[layout.owned]
         L.sort_indices()
-        n = A.shape[0]
         self.layout, self.shape = layout, (layout.n, L.shape[1])
         self.free = np.asarray(free)
-        it = L.indices.dtype
-        index = np.full(n, -1, it)
-        index[self.free] = np.arange(self.free.size, dtype=it)
-        keep = np.repeat(index[layout.owned] >= 0, np.diff(L.indptr)) & (index[L.indices] >= 0)
-        rows = np.arange(L.shape[0])
-        from .block_jacobian import _kept_indptr
-
-        self._ff = sp.csr_matrix((L.data[keep], index[L.indices[keep]], _kept_indptr(keep, L.indptr, rows, it)),
-                                 shape=(L.shape[0], self.free.size))
-        drop = ~keep
-        self._rest = sp.csr_matrix((L.data[drop], L.indices[drop], _kept_indptr(drop, L.indptr, rows, it)),
-                                   shape=L.shape)
+        self._ff, self._rest = split_free(L, layout.owned, self.free, all_rows=True)
 
     @property
     def local(self) -> sp.csr_matrix:
