@@ -50,9 +50,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 from ..core import live
+from ..core.csr import csr_positions_in_rows
 from ..core.errors import RunError
 from ..core.interruptible import interruptible
-from ..core.csr import csr_positions_in_rows
 from .block_jacobian import BlockJacobian, abs_matvec, block_diag_csr
 from .linear import repeatable_random
 from .timing import SPLIT
@@ -144,7 +144,7 @@ class _CondensedSolve:
     With AMG, a changed S keeps the AMG hierarchy (aggregates, transfers, coarse operators) of
     an earlier S while it differs from that one on few rows (``REUSE_ROWS`` of them changed
     diagonal: the condensed contact rows of fault dofs); S replaces the finest operator and its
-    smoother (`_refit`), and in 3D the line smoother keeps its lines, colours and renumbering and
+    smoother (`_refit`), and in 3D the line smoother keeps its lines, colours and band orders and
     takes S's values (:meth:`.line_smoother.LineSmoothedAMG.refit`). On the weak-scaling and
     30,000-cell systems (day 1's hierarchy on day 3's with faces opened and slipping) the coupled
     GMRES counts stay the same (9, 12, 33 against 9, 12, 32; 17, 4, 21 against the same), and the
@@ -181,21 +181,21 @@ class _CondensedSolve:
 
     def _line_smoothed(self, S):
         """The line-smoothed AMG of S (3D): the kept one refitted while S is close to its S (its
-        lines, colours, renumbering and hierarchy kept), else a new one."""
+        lines, colours, band orders and hierarchy kept), else a new one."""
         from .line_smoother import LineSmoothedAMG
 
         d = S.diagonal()
         ls = self._ls
         if ls is not None and self._close(d):
-            self._ml.levels[0].A = None         # the old S_p goes before the new one is made
+            self._ml.levels[0].A = None         # the old S goes before the new one's copies are made
             try:
-                return ls.refit(S, lambda Sp: _refit(self._ml, Sp) or self._ml.aspreconditioner(cycle="V"))
-            except ValueError:                  # another pattern (not from the models): start again
+                return ls.refit(S, lambda S_: _refit(self._ml, S_) or self._ml.aspreconditioner(cycle="V"))
+            except ValueError:                  # another size: start again
                 pass
         self._ls = self._ml = None
 
-        def factory(Sp, Bp):
-            self._ml = _amg_hierarchy(Sp, Bp)
+        def factory(S_, B_):
+            self._ml = _amg_hierarchy(S_, B_)
             return self._ml.aspreconditioner(cycle="V")
 
         with repeatable_random():

@@ -194,10 +194,10 @@ class LineSmoothedAMG:
     the residual, backward sweep (colours reversed), so M is symmetric when S and the AMG are.
     Each colour keeps a copy of its rows of S (in its band order) for its residual.
 
-    The AMG works on S in its own numbering: renumbered colour by colour (so that a colour's rows
-    would be a slice of it, no copies) its level-0 Gauss–Seidel sweeps in that order, and on
-    Emerald's systems the coupled GMRES needed 274 iterations instead of 171 (the weak-scaling
-    systems: 41–58 against 43–62). Lines, colours and band orders are kept by :meth:`refit`, which
+    The AMG works on S in its own numbering. Renumbered colour by colour (so that a colour's rows
+    would be a slice of it, no copies), its level-0 Gauss–Seidel sweeps in that order: Emerald's
+    systems then needed 274 coupled GMRES iterations instead of 171 (the weak-scaling ones 41–58
+    instead of 43–62, no gain there to weigh against that). Lines, colours and band orders are kept by :meth:`refit`, which
     takes a new S of the same pattern (between Newton iterations only contact rows change).
 
     Parameters
