@@ -1,8 +1,10 @@
-"""Where entries (row, col) sit in a CSR matrix's arrays, by a search of its sorted keys."""
+"""CSR matrices' arrays: where entries (row, col) sit (a search of sorted keys), entries added as
+stored zeros, and blocks of rows as views."""
 
 from __future__ import annotations
 
 import numpy as np
+import scipy.sparse as sp
 
 
 def csr_keys(M) -> np.ndarray:
@@ -69,3 +71,16 @@ def with_entries(M, rows: np.ndarray, cols: np.ndarray):
     out = type(M)((data, indices, indptr), shape=M.shape)
     out.has_sorted_indices = True
     return out
+
+
+def csr_rows(M, a: int, b: int, data=None):
+    """Rows a:b of a csr matrix as a csr matrix on views of its index arrays; ``data`` (the
+    block's values, e.g. a function of ``M.data[indptr[a]:indptr[b]]``) replaces the viewed values."""
+    s, e = int(M.indptr[a]), int(M.indptr[b])
+    return sp.csr_matrix((M.data[s:e] if data is None else data, M.indices[s:e], M.indptr[a:b + 1] - s),
+                         shape=(b - a, M.shape[1]))
+
+
+def row_block_data(M, a: int, b: int) -> np.ndarray:
+    """The stored values of rows a:b of a csr matrix (a view)."""
+    return M.data[int(M.indptr[a]):int(M.indptr[b])]

@@ -27,6 +27,8 @@ import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
+from ..core.csr import csr_rows
+
 # Rows of S per block of the products S T and S P (bounds their temporaries)
 ROW_BLOCK = 25_000
 
@@ -37,12 +39,6 @@ OMEGA = 4.0 / 3.0
 
 def _row_blocks(n: int):
     return [(a, min(a + ROW_BLOCK, n)) for a in range(0, n, ROW_BLOCK)]
-
-
-def _rows(M, a: int, b: int) -> sp.csr_matrix:
-    """Rows a:b of a csr matrix as a csr matrix on views of its arrays."""
-    s, e = int(M.indptr[a]), int(M.indptr[b])
-    return sp.csr_matrix((M.data[s:e], M.indices[s:e], M.indptr[a:b + 1] - s), shape=(b - a, M.shape[1]))
 
 
 def sa_hierarchy(S, B, max_coarse: int = 1000, coarse_solver: str = "splu"):
@@ -79,17 +75,17 @@ def sa_hierarchy(S, B, max_coarse: int = 1000, coarse_solver: str = "splu"):
     scale = OMEGA / approximate_spectral_radius(DS) * dinv
     parts = []
     for a, b in _row_blocks(n):
-        U = _rows(S, a, b) @ T
+        U = csr_rows(S, a, b) @ T
         U.data *= np.repeat(scale[a:b], np.diff(U.indptr))
-        parts.append(sp.csr_matrix(_rows(T, a, b) - U))
+        parts.append(sp.csr_matrix(csr_rows(T, a, b) - U))
         del U
     del T
     P = sp.csr_matrix(sp.vstack(parts, format="csr"))
     del parts
     Ac = None
     for a, b in _row_blocks(n):
-        Pr = _rows(P, a, b)
-        term = Pr.T @ (_rows(S, a, b) @ P)
+        Pr = csr_rows(P, a, b)
+        term = Pr.T @ (csr_rows(S, a, b) @ P)
         Ac = term if Ac is None else Ac + term
         del term
     k = B.shape[1]

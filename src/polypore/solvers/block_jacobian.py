@@ -21,6 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
+from ..core.csr import csr_rows, row_block_data
+
 _ABS_CHUNK = 2_000_000          # nonzeros per chunk of |M| |x| (no copy of M's values)
 
 
@@ -34,9 +36,7 @@ def abs_matvec(M, ax: np.ndarray) -> np.ndarray:
     edges = np.searchsorted(ip, np.arange(0, ip[-1] + _ABS_CHUNK, _ABS_CHUNK), side="right") - 1
     edges = np.unique(np.r_[0, np.clip(edges, 0, M.shape[0]), M.shape[0]])
     for a, b in zip(edges[:-1], edges[1:]):
-        s, e = ip[a], ip[b]
-        out[a:b] = sp.csr_matrix((np.abs(M.data[s:e]), M.indices[s:e], ip[a:b + 1] - s),
-                                 shape=(b - a, M.shape[1])) @ ax
+        out[a:b] = csr_rows(M, a, b, np.abs(row_block_data(M, a, b))) @ ax
     return out
 
 
@@ -89,10 +89,7 @@ class FreeSplit:
 
     def tocoo(self) -> sp.coo_matrix:
         """A (n, n) as coo (free–free entries first)."""
-        f, r = self.ff.tocoo(), self.rest.tocoo()
-        return sp.coo_matrix((np.concatenate([f.data, r.data]), (np.concatenate([self.free[f.row], r.row]),
-                                                                   np.concatenate([self.free[f.col], r.col]))),
-                             shape=self.shape)
+        return join_free(self.ff, self.rest, self.free, self.free)
 
     def tocsr(self) -> sp.csr_matrix:
         return self.tocoo().tocsr()
@@ -124,6 +121,16 @@ def split_free(L, row_global: np.ndarray, free: np.ndarray, all_rows: bool = Fal
     rest = sp.csr_matrix((L.data[drop], L.indices[drop], _kept_indptr(drop, L.indptr, np.arange(L.shape[0]), it)),
                          shape=L.shape)
     return ff, rest
+
+
+def join_free(ff, rest, free: np.ndarray, ff_rows: np.ndarray) -> sp.coo_matrix:
+    """The rows :func:`split_free` split, as coo in the full numbering: ff's entries (its row i
+    is row ``ff_rows[i]``, its columns free numbers) and then rest's. Coordinates, not a sum: the
+    stored zeros (contact couplings) stay in the pattern."""
+    f, r = ff.tocoo(), rest.tocoo()
+    return sp.coo_matrix((np.concatenate([f.data, r.data]), (np.concatenate([ff_rows[f.row], r.row]),
+                                                            np.concatenate([free[f.col], r.col]))),
+                         shape=rest.shape)
 
 
 def _kept_indptr(keep: np.ndarray, indptr: np.ndarray, rows: np.ndarray, dtype) -> np.ndarray:

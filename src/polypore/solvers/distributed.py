@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..core.errors import InputError
-from .block_jacobian import split_free
+from .block_jacobian import join_free, split_free
 
 log = logging.getLogger("polypore")
 
@@ -358,11 +358,7 @@ class SplitRowBlock(RowBlock):
 
     @property
     def local(self) -> sp.csr_matrix:
-        ff, r = self._ff.tocoo(), self._rest.tocoo()
-        # coordinates, not a sum: the stored zeros (contact couplings) stay in the pattern
-        L = sp.coo_matrix((np.concatenate([ff.data, r.data]), (np.concatenate([ff.row, r.row]),
-                                                              np.concatenate([self.free[ff.col], r.col]))),
-                          shape=r.shape).tocsr()
+        L = join_free(self._ff, self._rest, self.free, np.arange(self._rest.shape[0])).tocsr()
         L.sort_indices()
         return L
 

@@ -22,6 +22,8 @@ import scipy.sparse.linalg as spla
 from scipy.linalg import lapack
 from scipy.sparse.csgraph import connected_components, reverse_cuthill_mckee
 
+from ..core.csr import csr_rows, row_block_data
+
 # Widest band (super-diagonals) factorised as a band; wider blocks go to SuperLU.
 MAX_BAND = 128
 # Rows of S per block when node couplings are summed (bounds the temporaries)
@@ -116,8 +118,7 @@ def find_lines(S, B, attach_bubbles=True):
     F = None
     for a in range(0, n, ROW_BLOCK):
         b = min(a + ROW_BLOCK, n)
-        s, e = int(S.indptr[a]), int(S.indptr[b])
-        Sr = sp.csr_matrix((S.data[s:e] ** 2, S.indices[s:e], S.indptr[a:b + 1] - s), shape=(b - a, n))
+        Sr = csr_rows(S, a, b, row_block_data(S, a, b) ** 2)
         term = (P[a:b].T @ Sr @ P).tocsr()
         F = term if F is None else F + term
         del Sr, term
