@@ -154,3 +154,35 @@ def test_condensed_matrix_on_the_elastic_pattern(poro_pair):
     assert abs(S - S2).max() <= 1e-15 * abs(ref).max()
     assert S.nnz == J.uu.nnz and np.shares_memory(S.indices, J.uu.indices)   # A's pattern, its indices
     assert not np.shares_memory(S.data, J.uu.data)
+
+
+def test_condensed_matrix_borrows_the_elastic_values(poro_pair):
+    """condense(borrow=True): S is A's own arrays with the contact entries changed; the lent
+    object is A for products, diagonal and |A| x; restore() gives back A's values bit for bit, and
+    a whole block solve (set-up, GMRES) leaves them so."""
+    Pb, _ = poro_pair
+    st = Pb.initial_state(1e5)
+    st, _ = Pb.step(st, 10.0)
+    ctx, x0 = Pb.step_context(st, 10.0, st.time + 10.0)
+    J = Pb._linearise(x0, ctx).jacobian
+    A = J.uu
+    before = A.data.copy()
+    cond = Pb.mech.condensation()
+    Cinv, Cu_s, S_own = cond.condense(A, J.ul, J.lu, J.ll)
+    _, _, S, lent = cond.condense(A, J.ul, J.lu, J.ll, borrow=True)
+    try:
+        assert S.data.ctypes.data == A.data.ctypes.data                # the same values
+        assert np.array_equal(S.toarray(), S_own.toarray())
+        ref = sp.csr_matrix((before, A.indices, A.indptr), shape=A.shape)
+        v = np.random.default_rng(2).standard_normal(A.shape[0])
+        assert np.allclose(lent @ v, ref @ v, rtol=0, atol=1e-13 * np.abs(ref @ v).max())
+        assert np.array_equal(lent.diagonal(), ref.diagonal())
+        assert np.allclose(lent.abs_matvec(np.abs(v)), abs(ref) @ np.abs(v), rtol=1e-13)
+        assert not np.array_equal(A.data, before)           # borrowed: the contact entries are S's
+    finally:
+        lent.restore()
+    assert np.array_equal(A.data, before)
+    rhs = np.random.default_rng(3).standard_normal(J.shape[0])
+    x = Pb.solver.solve(J, rhs)
+    assert np.array_equal(J.uu.data, before)                 # the solve gave them back
+    assert np.linalg.norm(J @ x - rhs) <= 1e-6 * np.linalg.norm(rhs)

@@ -43,7 +43,7 @@ from __future__ import annotations
 import hashlib
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -53,7 +53,7 @@ from ..core import live
 from ..core.csr import csr_positions_in_rows
 from ..core.errors import RunError
 from ..core.interruptible import interruptible
-from .block_jacobian import BlockJacobian, abs_matvec, block_diag_csr
+from .block_jacobian import BlockJacobian, BorrowedValues, Unchanged, abs_matvec, block_diag_csr
 from .linear import repeatable_random
 from .timing import SPLIT
 
@@ -215,6 +215,12 @@ class _CondensedSolve:
         S = sp.csr_matrix(S)
         key = self._digest(S)
         if key == self._key:
+            # the kept operator reads S from now on: an S that borrows a matrix's values
+            # (condense(borrow=True)) is valid only while that matrix lends them
+            if self._ls is not None:
+                self._ls.S = S
+            if self._ml is not None:
+                self._ml.levels[0].A = S
             return self._op
         self._op = self._key = None            # the old factors go before the new ones are made
         B = self.near_nullspace
@@ -249,12 +255,24 @@ class ContactCondensation:
     normal: np.ndarray
     rho: float = 0.1
 
-    def condense(self, A, Bt, Cu, Cl):
+    def condense(self, A, Bt, Cu, Cl, borrow: bool = False):
         """(Cl̂⁻¹ csr, Cû csr, S csr) for the blocks of one Jacobian (S has data of its own and
-        shares A's index arrays)."""
+        shares A's index arrays).
+
+        With ``borrow`` (A a csr the caller owns for the solve) S borrows A's value array too
+        and a fourth item is returned, a :class:`~.block_jacobian.BorrowedValues` (or
+        :class:`~.block_jacobian.Unchanged`) standing for A until its ``restore()``, which the
+        caller must call before A is used again; when A is no sorted csr or lacks the contact
+        couplings' entries, S has values of its own as without ``borrow`` (and the fourth item
+        is an :class:`~.block_jacobian.Unchanged`).
+        """
         nf, d = self.normal.shape
+        lend = borrow and sp.issparse(A) and A.format == "csr" and A.has_sorted_indices
         if nf == 0:
-            return sp.csr_matrix((0, 0)), Cu, _restricted(A)
+            if lend:
+                return sp.csr_matrix((0, 0)), Cu, A, Unchanged(A)
+            S = _restricted(A)
+            return (sp.csr_matrix((0, 0)), Cu, S, Unchanged(A)) if borrow else (sp.csr_matrix((0, 0)), Cu, S)
         c, n = self.scale, self.normal
         DP = np.eye(d)[None] - _diag_blocks(Cl, nf, d) / c[:, None, None]
         DPn = np.einsum("fij,fj->fi", DP, n)
@@ -271,15 +289,19 @@ class ContactCondensation:
         # against ~100 MB of temporaries on the 30,000-cell study)
         P = (Bt @ Cinv @ Cu_s).tocsr()
         Q = (0.5 * (P + P.T)).tocoo()
-        S = _restricted(A)
-        pos, found = csr_positions_in_rows(S, Q.row, Q.col)
+        base = A if lend else _restricted(A)
+        pos, found = csr_positions_in_rows(base, Q.row, Q.col)
         if found.all():
             # the models' elastic matrices hold the contact couplings (explicit zeros, models/
             # mechanics.py): S is A's restriction with those entries changed, no sparse sum (whose
             # temporaries were the Newton iteration's peak: +1 GB on the 10⁵-cell grid)
-            S.data[pos] -= Q.data             # Q is coalesced: distinct positions
-            return Cinv, Cu_s, S
-        return Cinv, Cu_s, sp.csr_matrix(S - Q.tocsr())
+            if lend:
+                lent = BorrowedValues(A, pos, A.data[pos] - Q.data)     # Q is coalesced: distinct
+                return Cinv, Cu_s, sp.csr_matrix((A.data, A.indices, A.indptr), shape=A.shape), lent
+            base.data[pos] -= Q.data             # Q is coalesced: distinct positions
+            return (Cinv, Cu_s, base, Unchanged(A)) if borrow else (Cinv, Cu_s, base)
+        S = sp.csr_matrix(base - Q.tocsr())
+        return (Cinv, Cu_s, S, Unchanged(A)) if borrow else (Cinv, Cu_s, S)
 
 
 def _restricted(A) -> sp.csr_matrix:
@@ -335,18 +357,24 @@ class BlockContactSolver:
             J = BlockJacobian.from_csr(J, n_u, J.shape[0] - n_u)
         with SPLIT.timed("preconditioner", "block preconditioner set-up"):
             Bt = J.ul
-            Cinv, Cu_s, S = self.condensation.condense(J.uu, Bt, J.lu, J.ll)
-            Ms = self._s(S)
-            del S
+            # S borrows A's values until the solve ends (block_jacobian.BorrowedValues)
+            Cinv, Cu_s, S, lent = self.condensation.condense(J.uu, Bt, J.lu, J.ll, borrow=True)
+        try:
+            with SPLIT.timed("preconditioner", "block preconditioner set-up"):
+                Ms = self._s(S)
+                del S
+            J = replace(J, uu=lent)
 
-        def apply(r):
-            ru, rc = r[:n_u], r[n_u:]
-            xu = Ms @ (ru - Bt @ (Cinv @ rc))
-            xc = Cinv @ (rc - Cu_s @ xu)
-            return np.concatenate([xu, xc])
+            def apply(r):
+                ru, rc = r[:n_u], r[n_u:]
+                xu = Ms @ (ru - Bt @ (Cinv @ rc))
+                xc = Cinv @ (rc - Cu_s @ xu)
+                return np.concatenate([xu, xc])
 
-        with SPLIT.timed("krylov", "GMRES"):
-            x = _gmres(J, rhs, apply, self, target)
+            with SPLIT.timed("krylov", "GMRES"):
+                x = _gmres(J, rhs, apply, self, target)
+        finally:
+            lent.restore()
         self.seconds += time.perf_counter() - t0
         log.debug("block contact solver: %d GMRES iterations, %.2f s", self.iterations[-1], time.perf_counter() - t0)
         return x
@@ -607,20 +635,26 @@ class BlockPoroSolver:
             J = BlockJacobian.from_csr(J, nu, nl)
         with SPLIT.timed("preconditioner", "block preconditioner set-up"):
             Bt, Gpu = J.ul, J.pu
-            Cinv, Cu_s, S = self.condensation.condense(J.uu, Bt, J.lu, J.ll)
-            self._p.update(J.pp, Gpu, J.up, J.uu.diagonal(), self.pressure_nullspace, self.pressure_groups)
-            Mu, Mp = self._s(S), self._p.apply
-            del S
+            # S borrows A's values until the solve ends (block_jacobian.BorrowedValues)
+            Cinv, Cu_s, S, lent = self.condensation.condense(J.uu, Bt, J.lu, J.ll, borrow=True)
+        try:
+            with SPLIT.timed("preconditioner", "block preconditioner set-up"):
+                J = replace(J, uu=lent)
+                self._p.update(J.pp, Gpu, J.up, lent.diagonal(), self.pressure_nullspace, self.pressure_groups)
+                Mu, Mp = self._s(S), self._p.apply
+                del S
 
-        def apply(r):
-            ru, rl, rp = r[:nu], r[nu:po], r[po:]
-            xu = Mu @ (ru - Bt @ (Cinv @ rl)) if nl else Mu @ ru
-            xp = Mp(rp - Gpu @ xu)
-            xl = Cinv @ (rl - Cu_s @ xu) if nl else rl
-            return np.concatenate([xu, xl, xp])
+            def apply(r):
+                ru, rl, rp = r[:nu], r[nu:po], r[po:]
+                xu = Mu @ (ru - Bt @ (Cinv @ rl)) if nl else Mu @ ru
+                xp = Mp(rp - Gpu @ xu)
+                xl = Cinv @ (rl - Cu_s @ xu) if nl else rl
+                return np.concatenate([xu, xl, xp])
 
-        with SPLIT.timed("krylov", "GMRES"):
-            x = _gmres(J, rhs, apply, self, target)
+            with SPLIT.timed("krylov", "GMRES"):
+                x = _gmres(J, rhs, apply, self, target)
+        finally:
+            lent.restore()
         self.seconds += time.perf_counter() - t0
         log.debug("block poro solver: %d GMRES iterations, %.2f s", self.iterations[-1], time.perf_counter() - t0)
         return x
