@@ -603,7 +603,11 @@ class BlockPoroSolver:
     mechanics: str = "amg"
     rtol: float = 1e-8
     maxiter: int = 400
-    restart: int = 100
+    # GMRES keeps restart + 1 vectors of the system's size: 6.3 GB at 10⁶ cells for 100, the
+    # largest single item of such a run. On the weak-scaling systems restart 40 took the same
+    # iterations as 100 (3·10⁴ cells: 244 against 253 over six Newton systems; 30 at 10⁵: 117
+    # against 123), 20 did not (140 against 55 on a first system of a day)
+    restart: int = 40
     # the coupled systems' round-off floor in Newton's weighted norm is higher than the contact
     # ones': on the 30,000-cell generated corner-point grid PARDISO's own solution of the first
     # Newton system has a relative residual of 3e-6, and GMRES stalled there for 400 iterations
