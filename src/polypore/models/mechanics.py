@@ -350,12 +350,16 @@ class ContactMechanics:
         return ContactCondensation(self.c_area * self.law.beta, self.c_normal, rho)
 
     def rigid_modes(self) -> np.ndarray:
-        """(n_free, 3 or 6) rigid motions of the free displacement dofs (bubbles zero)."""
+        """(n_free, 3 or 6) rigid motions of the free displacement dofs (bubbles zero); made once
+        and shared read-only by the solvers that take them (48 bytes per dof each)."""
         from ..solvers.linear import rigid_body_modes
 
-        R = np.zeros((self.n_dofs, 3 if self.dim == 2 else 6))
-        R[: self.space.n_point_slots * self.dim] = rigid_body_modes(self.slot_points)
-        return R[self.free]
+        if getattr(self, "_rigid", None) is None:
+            R = np.zeros((self.n_dofs, 3 if self.dim == 2 else 6))
+            R[: self.space.n_point_slots * self.dim] = rigid_body_modes(self.slot_points)
+            self._rigid = R[self.free]
+            self._rigid.flags.writeable = False
+        return self._rigid
 
     # ---- distributed runs (solvers/distributed.py) --------------------------------------------
     def slot_owner(self, part: np.ndarray) -> np.ndarray:

@@ -245,7 +245,8 @@ class Poromechanics:
         # under mpiexec each rank keeps its rows of G (displacement dofs) and Gᵀ (flow unknowns)
         self.flow_layout = owned_layout(self.fm.mesh, lambda part: np.concatenate([self.flow.dof_owner(part), part]))
         self.G = RowBlock.of(G, mech.dof_layout)
-        self.GT = RowBlock.of(int32_indices(G.T.tocsr()), self.flow_layout)
+        # on one process Gᵀ is G's transposed view (csc), not a copy
+        self.GT = G.T if self.flow_layout is None else RowBlock.of(int32_indices(G.T.tocsr()), self.flow_layout)
         self._nc = nc
 
     def _setup_stabilisation(self, delta):
@@ -461,7 +462,7 @@ class Poromechanics:
         GT = self.GT
         # |Gᵀ| shares Gᵀ's index arrays (a RowBlock's __abs__ does so too)
         self._abs_GT = abs(GT) if isinstance(GT, RowBlock) else \
-            sp.csr_array((np.abs(GT.data), GT.indices, GT.indptr), shape=GT.shape)
+            type(GT)((np.abs(GT.data), GT.indices, GT.indptr), shape=GT.shape)
         # equation kind of each flow row that is an unknown: 0 cell mass balance, 1 face flux
         # continuity, 2 matrix–fracture exchange (traces), 3 fracture mass balance, 4 fracture-edge
         # flux continuity
