@@ -58,3 +58,15 @@ def test_zero_right_hand_side():
     J, _, apply = _floor_system(n=5)
     opts = _opts()
     assert np.all(_gmres(J, np.zeros(5), apply, opts) == 0) and opts.iterations[-1] == 0
+
+
+def test_restart_shortened_on_large_systems_only():
+    """The Krylov basis stays within its byte budget on large systems, never below the floor;
+    small systems keep the restart asked for."""
+    from polypore.solvers.block_contact import KRYLOV_BASIS_BYTES, MIN_RESTART, krylov_restart
+
+    assert krylov_restart(100, 10_000) == 100 and krylov_restart(25, 10_000) == 25
+    n = 4_400_000
+    r = krylov_restart(100, n)
+    assert MIN_RESTART <= r < 100 and (r + 1) * 8 * n <= KRYLOV_BASIS_BYTES
+    assert krylov_restart(100, 50_000_000) == MIN_RESTART and krylov_restart(10, 50_000_000) == 10

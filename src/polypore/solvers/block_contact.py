@@ -402,6 +402,25 @@ def attainable_rtol(J, x, w, bnorm: float) -> float:
     return float(np.finfo(float).eps * np.linalg.norm(w * out) / bnorm)
 
 
+# Bytes the Krylov basis may take before the restart is shortened (krylov_restart)
+KRYLOV_BASIS_BYTES = 1.5e9
+MIN_RESTART = 40
+
+
+def krylov_restart(restart: int, n: int) -> int:
+    """The restart length for a system of n unknowns: ``restart``, shortened so that the basis
+    (restart + 1 vectors of n float64) stays within ``KRYLOV_BASIS_BYTES``, never below
+    ``MIN_RESTART``.
+
+    At 10⁶ cells (7.8·10⁶ unknowns) a basis of 101 vectors is 6.3 GB, the largest single item of
+    such a run; systems up to ~1.8·10⁶ unknowns keep 100. On the weak-scaling systems restart 40
+    (30) took as many iterations as 100: 244 against 253 over six Newton systems at 3·10⁴ cells,
+    117 against 123 over two at 10⁵; 20 did not (140 against 55 on a day's first system).
+    """
+    fit = int(KRYLOV_BASIS_BYTES // (8 * max(n, 1))) - 1
+    return int(max(min(restart, fit), min(restart, MIN_RESTART)))
+
+
 def _gmres(J, rhs, apply, solver, target=None):
     """Restarted GMRES with iteration count and failure message.
 
@@ -459,7 +478,7 @@ def _gmres(J, rhs, apply, solver, target=None):
     prev = np.inf
     r = b
     while True:
-        restart = min(solver.restart, solver.maxiter - its[0])
+        restart = min(krylov_restart(solver.restart, n), solver.maxiter - its[0])
         if w is None:
             x, info = spla.gmres(J, rhs, x0=x, M=M, rtol=rtol, restart=restart, maxiter=1,
                                  callback=cb, callback_type="pr_norm")
@@ -603,11 +622,9 @@ class BlockPoroSolver:
     mechanics: str = "amg"
     rtol: float = 1e-8
     maxiter: int = 400
-    # GMRES keeps restart + 1 vectors of the system's size: 6.3 GB at 10⁶ cells for 100, the
-    # largest single item of such a run. On the weak-scaling systems restart 40 took the same
-    # iterations as 100 (3·10⁴ cells: 244 against 253 over six Newton systems; 30 at 10⁵: 117
-    # against 123), 20 did not (140 against 55 on a first system of a day)
-    restart: int = 40
+    # the largest restart; GMRES keeps restart + 1 vectors of the system's size, and on large
+    # systems fewer are kept (krylov_restart)
+    restart: int = 100
     # the coupled systems' round-off floor in Newton's weighted norm is higher than the contact
     # ones': on the 30,000-cell generated corner-point grid PARDISO's own solution of the first
     # Newton system has a relative residual of 3e-6, and GMRES stalled there for 400 iterations
