@@ -266,13 +266,14 @@ class ContactCondensation:
         couplings' entries, S has values of its own as without ``borrow`` (and the fourth item
         is an :class:`~.block_jacobian.Unchanged`).
         """
+        out = self._condense(A, Bt, Cu, Cl, borrow and sp.issparse(A) and A.format == "csr" and A.has_sorted_indices)
+        return out if borrow else out[:3]
+
+    def _condense(self, A, Bt, Cu, Cl, lend: bool):
+        """(Cl̂⁻¹, Cû, S, the lent A) of :meth:`condense`; S on A's own arrays when ``lend``."""
         nf, d = self.normal.shape
-        lend = borrow and sp.issparse(A) and A.format == "csr" and A.has_sorted_indices
         if nf == 0:
-            if lend:
-                return sp.csr_matrix((0, 0)), Cu, A, Unchanged(A)
-            S = _restricted(A)
-            return (sp.csr_matrix((0, 0)), Cu, S, Unchanged(A)) if borrow else (sp.csr_matrix((0, 0)), Cu, S)
+            return sp.csr_matrix((0, 0)), Cu, (A if lend else _restricted(A)), Unchanged(A)
         c, n = self.scale, self.normal
         DP = np.eye(d)[None] - _diag_blocks(Cl, nf, d) / c[:, None, None]
         DPn = np.einsum("fij,fj->fi", DP, n)
@@ -291,17 +292,17 @@ class ContactCondensation:
         Q = (0.5 * (P + P.T)).tocoo()
         base = A if lend else _restricted(A)
         pos, found = csr_positions_in_rows(base, Q.row, Q.col)
-        if found.all():
-            # the models' elastic matrices hold the contact couplings (explicit zeros, models/
-            # mechanics.py): S is A's restriction with those entries changed, no sparse sum (whose
-            # temporaries were the Newton iteration's peak: +1 GB on the 10⁵-cell grid)
-            if lend:
-                lent = BorrowedValues(A, pos, A.data[pos] - Q.data)     # Q is coalesced: distinct
-                return Cinv, Cu_s, sp.csr_matrix((A.data, A.indices, A.indptr), shape=A.shape), lent
-            base.data[pos] -= Q.data             # Q is coalesced: distinct positions
-            return (Cinv, Cu_s, base, Unchanged(A)) if borrow else (Cinv, Cu_s, base)
-        S = sp.csr_matrix(base - Q.tocsr())
-        return (Cinv, Cu_s, S, Unchanged(A)) if borrow else (Cinv, Cu_s, S)
+        if not found.all():
+            return Cinv, Cu_s, sp.csr_matrix(base - Q.tocsr()), Unchanged(A)
+        # the models' elastic matrices hold the contact couplings (explicit zeros, models/
+        # mechanics.py): S is A's restriction with those entries changed, no sparse sum (whose
+        # temporaries were the Newton iteration's peak: +1 GB on the 10⁵-cell grid); Q is
+        # coalesced, so the positions are distinct
+        if lend:
+            lent = BorrowedValues(A, pos, A.data[pos] - Q.data)
+            return Cinv, Cu_s, sp.csr_matrix((A.data, A.indices, A.indptr), shape=A.shape), lent
+        base.data[pos] -= Q.data
+        return Cinv, Cu_s, base, Unchanged(A)
 
 
 def _restricted(A) -> sp.csr_matrix:
