@@ -94,3 +94,34 @@ def test_mass_rate_equals_the_volume_rate_times_density_and_takes_a_schedule():
     shut = flux({"name": "injection", "mass_rate": "0.02 * (t < 100 * day)"})
     x = np.zeros(3)
     assert shut(x, x, x, 50 * 86400.0)[0] == pytest.approx(q_mass) and shut(x, x, x, 150 * 86400.0)[0] == 0.0
+
+
+def test_conductivity_growth_flags_the_step_of_a_dilatant_onset(tmp_path, cli):
+    """The fluxes lag one step (scheme.md §6): a step in which dilatancy raises a face's C_f by
+    orders of magnitude is reported (StepInfo.conductivity_growth, summary.json) and warned of
+    once; before the onset C_f does not change (growth 1); without dilatancy it never grows."""
+    import json
+
+    model, fs = _model()
+    st = model.reference_state(fs.initial_pressure)
+    growth, slip = [], []
+    for _ in range(8):
+        st, info = model.step(st, 30 * 86400.0)
+        growth.append(info.conductivity_growth)
+        slip.append(info.slip)
+    first = next(k for k, n in enumerate(slip) if n > 0)
+    assert np.allclose(growth[:first], 1.0, rtol=1e-9, atol=0)
+    assert growth[first] > 10                          # 10 µm → 0.1-1 mm: ×10³-10⁶
+    model, fs = _model("flow.dilatancy_angle=0")
+    st = model.reference_state(fs.initial_pressure)
+    for _ in range(8):
+        st, info = model.step(st, 30 * 86400.0)
+        assert abs(info.conductivity_growth - 1.0) < 1e-9       # closed faces: [[u]]_n at round-off
+    out = tmp_path / "c6"
+    args = [a for o in [*COARSE, "time.step=2592000"] for a in ("--set", o)]
+    code, _, err = cli("run", "fault-injection", "--out", str(out), *args)
+    assert code == 0, err
+    s = json.loads((out / "summary.json").read_text())
+    k = s["conductivity_growth"]["warned_at_step"]
+    assert k is not None and s["steps"][k - 1]["conductivity_growth"] > 10
+    assert err.count("depend on time.step") == 1, err

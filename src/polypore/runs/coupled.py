@@ -44,6 +44,9 @@ from .common import RunClock, corner_point_faults
 from .march import march
 
 log = logging.getLogger("polypore")
+# a step whose fracture conductivity grows more than this, on faces carrying flow, is warned of
+# (the fluxes lag one step: Poromechanics.conductivity_growth)
+CONDUCTIVITY_GROWTH_WARN = 10.0
 
 
 def run_poromechanics(case: CaseFile, out: Path) -> dict:
@@ -84,6 +87,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
              int(np.sum(state.state == 0)), int(np.sum(state.state == 1)), int(np.sum(state.state == 2)),
              time.perf_counter() - t0)
     steps, energies, pvd, blocks, series, snapshots = [], [], [], [], [], []
+    warned = []                         # the step of the conductivity-growth warning (once per run)
 
     with staged_run_directory(out) as stage:
         atomic_write_text(stage / "case.toml", case.to_toml())
@@ -153,6 +157,14 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                    "cuts": rec.cuts, "history": info.history}
             if info.linear_iterations:
                 row["linear_iterations"] = info.linear_iterations
+            row["conductivity_growth"] = info.conductivity_growth
+            if info.conductivity_growth > CONDUCTIVITY_GROWTH_WARN and not warned:
+                warned.append(rec.index)
+                log.warning("step %d (t = %g s): the fracture conductivity grew up to %.1e-fold on faces that carry "
+                            "flow; the step's fluxes use the previous step's conductivity (scheme.md §6), so slip and "
+                            "fault pressure after it depend on time.step (here Δt = %g s): compare with a shorter "
+                            "step (docs/fault_bounds.md, \"The time step\"; summary.json steps[].conductivity_growth)",
+                            rec.index, rec.time, info.conductivity_growth, rec.dt)
             if info.energy is not None:
                 row["energy"] = info.energy.summary()
                 energies.append(info.energy)
@@ -200,6 +212,9 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             "choices": ms.choices,
             "steps": steps,
             "energy_check": {"violations": violations, "steps_checked": len(energies)},
+            "conductivity_growth": {"max": max((r["conductivity_growth"] for r in steps), default=1.0),
+                                    "warned_at_step": warned[0] if warned else None,
+                                    "warn_above": CONDUCTIVITY_GROWTH_WARN},
             "fracture_means": series,
             "slip_onset": onset or None,
             "monitor": {"time": monitor["time"], "overpressure_at_points": monitor["points"],

@@ -1,0 +1,143 @@
+"""Benchmark: time-step convergence of fault slip and fault pressure on the tilted corner-point grid
+(issue 24, docs/fault_bounds.md "The time step").
+
+    PYTHONPATH=src .venv-fast/bin/python benchmarks/timestep_study.py --out DIR [--days 5 2.5 1 0.5]
+        [--dilatancy 20] [--cells 60 50 11] [--json docs/timestep_study.json]
+    PYTHONPATH=src .venv-fast/bin/python benchmarks/timestep_study.py --out DIR --analyse-only
+
+Runs ``benchmarks/cornerpoint_reactivation.py`` (the tilted grid of docs/fault_bounds.md: 60°
+pillars, pinch-outs, crossing contact faults F1 and F2, 100 kg/s for 10 days, ``block-amg``) once
+per time step, one after the other, into DIR/dt<days>, then compares the runs at the output times
+of the coarsest step. Per fault and time it prints the largest slip, the slipped area (faces with
+slip since the start above ``--slipped`` mm, default 0.1), the area in the slip state, and the
+largest and mean fracture pressure; for the largest slip at the end it adds the Richardson
+estimate from the two finest steps (first order: s₀ ≈ 2 s(Δt/2) − s(Δt)). Writes
+DIR/timestep_study.png (largest slip and largest fault pressure against time, per fault and step).
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+DAY = 86400.0
+HERE = Path(__file__).resolve().parent
+
+
+def run(out: Path, days: float, cells, dilatancy: float) -> None:
+    cmd = [sys.executable, str(HERE / "cornerpoint_reactivation.py"), "--cells", *map(str, cells), "--tilt", "60",
+           "--pinchout", "2", str(cells[2] - 1), "--f1-x", "1400", "--f2-contact", "--linear", "block-amg",
+           "--set", "parameters.mass_rate=100", "--set", f"time.step={days * DAY:g}",
+           "--set", f"flow.dilatancy_angle={dilatancy:g}", "--out", str(out), "--json", str(out) + ".json"]
+    print("running:", " ".join(cmd[1:]), flush=True)
+    subprocess.run(cmd, check=True)
+
+
+def faces(folder: Path) -> dict:
+    with open(folder / "fractures.csv") as f:
+        rows = list(csv.DictReader(f))
+    out = {k: np.array([r[k] for r in rows]) for k in ("fracture", "state")}
+    for k in ("time", "area", "jump_t", "p_f"):
+        out[k] = np.array([float(r[k]) for r in rows])
+    return out
+
+
+def measures(folder: Path, times, slipped_mm: float) -> dict:
+    """Per fault: lists over ``times`` (s) of max slip (m), slipped and slip-state area fractions,
+    max and area-mean p_f (Pa)."""
+    d = faces(folder)
+    res = {}
+    for name in np.unique(d["fracture"]):
+        f = d["fracture"] == name
+        keys = ("max_slip", "slipped_area", "slip_state_area", "max_p_f", "mean_p_f")
+        r = {k: [] for k in keys}
+        for t in times:
+            m = f & np.isclose(d["time"], t, rtol=0, atol=1.0)
+            if not np.any(m):
+                raise SystemExit(f"{folder}: no output at t = {t:g} s")
+            a, s = d["area"][m], d["jump_t"][m]
+            r["max_slip"].append(float(s.max()))
+            r["slipped_area"].append(float(a[s > slipped_mm * 1e-3].sum() / a.sum()))
+            r["slip_state_area"].append(float(a[d["state"][m] == "slip"].sum() / a.sum()))
+            r["max_p_f"].append(float(d["p_f"][m].max()))
+            r["mean_p_f"].append(float(np.average(d["p_f"][m], weights=a)))
+        res[str(name)] = r
+    return res
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--out", type=Path, required=True)
+    ap.add_argument("--days", type=float, nargs="+", default=[5.0, 2.5, 1.0, 0.5])
+    ap.add_argument("--dilatancy", type=float, default=20.0)
+    ap.add_argument("--cells", type=int, nargs=3, default=[60, 50, 11])
+    ap.add_argument("--slipped", type=float, default=0.1, help="slip (mm) above which a face counts as slipped")
+    ap.add_argument("--analyse-only", action="store_true")
+    ap.add_argument("--json", type=Path)
+    a = ap.parse_args(argv)
+    days = sorted(a.days, reverse=True)
+    folders = {dd: a.out / f"dt{dd:g}" for dd in days}
+    if not a.analyse_only:
+        a.out.mkdir(parents=True, exist_ok=True)
+        for dd, folder in folders.items():
+            run(folder, dd, a.cells, a.dilatancy)
+    times = np.arange(0.0, 10.0 + 1e-9, days[0]) * DAY
+    res = {dd: measures(folder, times, a.slipped) for dd, folder in folders.items()}
+    print(f"\nψ = {a.dilatancy:g}°; columns per step Δt: largest slip (mm) | slipped area (%) | slip state (%) | "
+          f"max / mean p_f (MPa)")
+    for name in res[days[0]]:
+        print(f"\n{name}")
+        print("| day | " + " | ".join(f"Δt = {dd:g} d" for dd in days) + " |")
+        print("|---" * (len(days) + 1) + "|")
+        for i, t in enumerate(times):
+            cells = []
+            for dd in days:
+                r = res[dd][name]
+                cells.append(f"{1e3 * r['max_slip'][i]:.2f} mm, {100 * r['slipped_area'][i]:.1f} %, "
+                             f"{100 * r['slip_state_area'][i]:.1f} %, {r['max_p_f'][i] / 1e6:.2f}/"
+                             f"{r['mean_p_f'][i] / 1e6:.2f} MPa")
+            print(f"| {t / DAY:g} | " + " | ".join(cells) + " |")
+        if len(days) >= 2:
+            s1, s2 = res[days[-2]][name]["max_slip"][-1], res[days[-1]][name]["max_slip"][-1]
+            if days[-2] == 2 * days[-1]:
+                print(f"largest slip at the end, Richardson (first order) from Δt = {days[-2]:g}, {days[-1]:g} d: "
+                      f"{1e3 * (2 * s2 - s1):.2f} mm")
+    own = {dd: np.arange(0.0, 10.0 + 1e-9, dd) * DAY for dd in days}
+    _plot({dd: measures(folder, own[dd], a.slipped) for dd, folder in folders.items()}, own, days,
+          a.out / "timestep_study.png")
+    if a.json:
+        a.json.write_text(json.dumps({"dilatancy_deg": a.dilatancy, "cells": a.cells, "times_s": times.tolist(),
+                                      "slipped_mm": a.slipped,
+                                      "runs": {f"{dd:g}": res[dd] for dd in days}}, indent=1))
+    return 0
+
+
+def _plot(res, times: dict, days, path: Path) -> None:
+    """Largest slip and fault pressure against time, each run at its own step times."""
+    sys.path.insert(0, str(HERE.parent / "src"))
+    from polypore.io.plots import _plt, save
+
+    plt = _plt()
+    names = list(res[days[0]])
+    fig, axes = plt.subplots(2, len(names), figsize=(5.5 * len(names), 7), squeeze=False)
+    for j, name in enumerate(names):
+        for dd in days:
+            r = res[dd][name]
+            axes[0, j].plot(times[dd] / DAY, 1e3 * np.array(r["max_slip"]), ".-", label=f"Δt = {dd:g} d")
+            axes[1, j].plot(times[dd] / DAY, 1e-6 * np.array(r["max_p_f"]), ".-", label=f"Δt = {dd:g} d")
+        axes[0, j].set(title=f"{name}: largest slip", ylabel="slip (mm)")
+        axes[1, j].set(title=f"{name}: largest fracture overpressure", xlabel="time (days)", ylabel="p_f (MPa)")
+        for ax in axes[:, j]:
+            ax.grid(alpha=0.3)
+            ax.legend()
+    save(fig, path)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
