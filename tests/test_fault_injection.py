@@ -123,5 +123,6 @@ def test_conductivity_growth_flags_the_step_of_a_dilatant_onset(tmp_path, cli):
     assert code == 0, err
     s = json.loads((out / "summary.json").read_text())
     k = s["conductivity_growth"]["warned_at_step"]
-    assert k is not None and s["steps"][k - 1]["conductivity_growth"] > 10
-    assert err.count("depend on time.step") == 1, err
+    assert k is not None and s["steps"][k - 1]["conductivity_growth"] > 1e3     # ×2e4 at 30-day steps
+    assert all(r["conductivity_growth"] <= 1e3 for r in s["steps"][:k - 1])
+    assert err.count("may depend on time.step") == 1, err

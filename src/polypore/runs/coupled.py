@@ -44,9 +44,12 @@ from .common import RunClock, corner_point_faults
 from .march import march
 
 log = logging.getLogger("polypore")
-# a step whose fracture conductivity grows more than this, on faces carrying flow, is warned of
-# (the fluxes lag one step: Poromechanics.conductivity_growth)
-CONDUCTIVITY_GROWTH_WARN = 10.0
+# a step whose fracture conductivity grows more than this (aperture ×10 with the cubic law), on
+# faces carrying flow, is warned of: the fluxes lag one step (Poromechanics.conductivity_growth).
+# Growth does not measure the error: on the tilted grid of docs/fault_bounds.md 2e8 went with slip
+# 60 % above its Δt → 0 value, on C6 (coarse) 54 at 5-day steps with 3.5 % and 2e4 at 30-day
+# steps with 2.7 % at the end; the warning asks for the check that does (a shorter step)
+CONDUCTIVITY_GROWTH_WARN = 1e3
 
 
 def run_poromechanics(case: CaseFile, out: Path) -> dict:
@@ -162,8 +165,9 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                 warned.append(rec.index)
                 log.warning("step %d (t = %g s): the fracture conductivity grew up to %.1e-fold on faces that carry "
                             "flow; the step's fluxes use the previous step's conductivity (scheme.md §6), so slip and "
-                            "fault pressure after it depend on time.step (here Δt = %g s): compare with a shorter "
-                            "step (docs/fault_bounds.md, \"The time step\"; summary.json steps[].conductivity_growth)",
+                            "fault pressure after it may depend on time.step (here Δt = %g s): compare with a "
+                            "shorter step (docs/fault_bounds.md, \"The time step\"; summary.json "
+                            "steps[].conductivity_growth)",
                             rec.index, rec.time, info.conductivity_growth, rec.dt)
             if info.energy is not None:
                 row["energy"] = info.energy.summary()
