@@ -18,7 +18,6 @@ DIR/timestep_study.png (largest slip and largest fault pressure against time, pe
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import subprocess
 import sys
@@ -28,6 +27,8 @@ import numpy as np
 
 DAY = 86400.0
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from fault_bounds import read_csv  # noqa: E402
 
 
 def run(out: Path, days: float, cells, dilatancy: float) -> None:
@@ -39,34 +40,26 @@ def run(out: Path, days: float, cells, dilatancy: float) -> None:
     subprocess.run(cmd, check=True)
 
 
-def faces(folder: Path) -> dict:
-    with open(folder / "fractures.csv") as f:
-        rows = list(csv.DictReader(f))
-    out = {k: np.array([r[k] for r in rows]) for k in ("fracture", "state")}
-    for k in ("time", "area", "jump_t", "p_f"):
-        out[k] = np.array([float(r[k]) for r in rows])
-    return out
-
-
 def measures(folder: Path, times, slipped_mm: float) -> dict:
     """Per fault: lists over ``times`` (s) of max slip (m), slipped and slip-state area fractions,
     max and area-mean p_f (Pa)."""
-    d = faces(folder)
+    d = read_csv(folder / "fractures.csv")         # (n_out, n_ff) arrays, fault_bounds.py's reader
     res = {}
     for name in np.unique(d["fracture"]):
         f = d["fracture"] == name
+        a = d["area"][f]
         keys = ("max_slip", "slipped_area", "slip_state_area", "max_p_f", "mean_p_f")
         r = {k: [] for k in keys}
         for t in times:
-            m = f & np.isclose(d["time"], t, rtol=0, atol=1.0)
-            if not np.any(m):
+            hit = np.flatnonzero(np.isclose(d["time"], t, rtol=0, atol=1.0))
+            if not hit.size:
                 raise SystemExit(f"{folder}: no output at t = {t:g} s")
-            a, s = d["area"][m], d["jump_t"][m]
+            s, pf = d["jump_t"][hit[0], f], d["p_f"][hit[0], f]
             r["max_slip"].append(float(s.max()))
             r["slipped_area"].append(float(a[s > slipped_mm * 1e-3].sum() / a.sum()))
-            r["slip_state_area"].append(float(a[d["state"][m] == "slip"].sum() / a.sum()))
-            r["max_p_f"].append(float(d["p_f"][m].max()))
-            r["mean_p_f"].append(float(np.average(d["p_f"][m], weights=a)))
+            r["slip_state_area"].append(float(a[d["state"][hit[0], f] == "slip"].sum() / a.sum()))
+            r["max_p_f"].append(float(pf.max()))
+            r["mean_p_f"].append(float(np.average(pf, weights=a)))
         res[str(name)] = r
     return res
 

@@ -17,12 +17,12 @@ def _module():
 
 
 def test_slipped_and_slip_state_areas_max_slip_and_pressures(tmp_path):
-    rows = ["step,time,fracture,face,area,jump_t,state,p_f"]
+    rows = ["step,time,fracture,face,area,jump_t,state,p_f,lambda_n,lambda_t"]
     # face 0: 30 m², slips 2 mm by day 5 then sticks; face 1: 10 m², 0.05 mm (below 0.1 mm) but sliding
     for k, (t, s0, s1, st0, st1, p0, p1) in enumerate([(0, 0, 0, "stick", "stick", 0, 0),
                                                        (5, 2e-3, 0, "slip", "stick", 1e6, 2e6),
                                                        (10, 2e-3, 5e-5, "stick", "slip", 3e6, 1e6)]):
-        rows += [f"{k},{t * 86400.0},F,0,30,{s0},{st0},{p0}", f"{k},{t * 86400.0},F,1,10,{s1},{st1},{p1}"]
+        rows += [f"{k},{t * 86400.0},F,0,30,{s0},{st0},{p0},1,0", f"{k},{t * 86400.0},F,1,10,{s1},{st1},{p1},1,0"]
     (tmp_path / "fractures.csv").write_text("\n".join(rows) + "\n")
     m = _module().measures(tmp_path, np.array([0.0, 5.0, 10.0]) * 86400.0, slipped_mm=0.1)["F"]
     assert m["max_slip"] == [0.0, 2e-3, 2e-3]
