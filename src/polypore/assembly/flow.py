@@ -198,6 +198,43 @@ class FlowAssembler:
             vals.append(blk.ravel())
         return np.concatenate(vals), denom
 
+    # -- fracture coefficients ------------------------------------------------------------
+    def fracture_contributions(self):
+        """The contributions of :meth:`full_matrix` that carry the exchange |σ| Λ_f/η and the
+        fracture conductivity C_f/η, per unit coefficient (their derivative with respect to it).
+
+        Returns
+        -------
+        slot : (m,) position of each in ``full_matrix(...).data`` (the pattern is fixed)
+        rows, cols : (m,) int64 rows and columns (full numbering)
+        face : (m,) int64 fracture face whose coefficient multiplies each
+        conductive : (m,) bool, True where the coefficient is C_f/η, False where it is |σ| Λ_f/η
+        unit : (m,) the values at coefficient 1 (fracture storage excluded), so that those
+            contributions of ``full_matrix(s, ex, fc, s_f)`` are ``unit × where(conductive, fc, ex)[face]``
+            plus the storage on the fracture cells' diagonal
+        """
+        if self._full_pattern is None:
+            self._full_pattern = self._build_pattern(full=True)
+        r, c, _ = self._contributions(True)
+        nh = sum(b.cells.size * (b.T.shape[1] + 1) ** 2 for b in self.hfv.blocks)
+        nf = self.network.n_faces
+        faces = [np.repeat(np.arange(nf, dtype=np.int64), 8)]
+        units = [np.tile(np.array([1.0, -1.0, -1.0, 1.0]), 2 * nf)]     # (side, row, col) as in _values
+        for b in self.fhfv_unit.blocks:
+            m = b.T.shape[1]
+            tb = b.T.sum(2)
+            blk = np.empty((len(b.cells), m + 1, m + 1))
+            blk[:, 0, 0] = tb.sum(1)
+            blk[:, 0, 1:] = -tb
+            blk[:, 1:, 0] = -tb
+            blk[:, 1:, 1:] = b.T
+            faces.append(np.repeat(b.cells.astype(np.int64), (m + 1) ** 2))
+            units.append(blk.ravel())
+        face = np.concatenate(faces)
+        conductive = np.ones(face.size, bool)
+        conductive[:8 * nf] = False
+        return self._full_pattern.slot[nh:].astype(np.int64), r[nh:], c[nh:], face, conductive, np.concatenate(units)
+
     # -- public ---------------------------------------------------------------------------
     def system(self, cell_storage, exchange, fracture_conductivity, fracture_storage) -> FlowSystem:
         """Condensed matrix for given coefficients (all per entity, see :class:`FlowSystem`).

@@ -178,9 +178,9 @@ def step_energy(model, old, new) -> EnergyTerms:
     reac_w = float(R[fixed] @ du[fixed])
     adu = np.abs(du)
     scale += float(adu @ (np.abs(Au) + np.abs(Bl) + np.abs(Gp) + 2 * np.abs(F)))
-    # -- flow: viscous dissipation with the lagged conductivities, sources, boundary flow
+    # -- flow: viscous dissipation with the step's conductivities (lagged by default), sources, boundary flow
     p = new.p
-    ex, fc = model.conductivities(old.aperture) if nf else (np.zeros(0), np.zeros(0))
+    ex, fc = model.conductivities(new.flux_aperture) if nf else (np.zeros(0), np.zeros(0))
     cf_ = mesh.cell_faces
     rows = cf_.rows_of_entries()
     Fm = asm.cell_fluxes(pK, p)

@@ -71,10 +71,12 @@ from ..solvers.petsc import shared
 from .contact import OPEN, SLIP, linearise_contact
 from .energy import step_energy
 from .flow import FlowData, FlowModel, FlowSolution, _positive
+from .implicit_conductivity import H as LAW_STEP, ImplicitConductivity
 from .mechanics import ContactMechanics, MechanicsData, jacobian_pattern
 
 log = logging.getLogger("polypore")
 
+APERTURES = ("previous", "current")   # flow.conductivity_aperture: d_f^{n−1} (scheme.md §6) or d_f^n
 STABILISATION = 0.25   # default δ of the pressure-jump stabilisation (docs/poromechanics.md, docs/choices.md)
 
 
@@ -158,14 +160,23 @@ class Poromechanics:
     pressure_stabilisation : float
         δ ≥ 0 (dimensionless) of the pressure-jump stabilisation of the mass balance
         (:meth:`stabilisation_matrix`); default 0.25, 0 switches it off.
+    conductivity_aperture : "previous" or "current"
+        the aperture of C_f and Λ_f in a step: d_f^{n−1} (scheme.md §6, the default) or the
+        step's own d_f^n, linearised in Newton (:mod:`.implicit_conductivity`; one process only;
+        not a case-file key yet: at a dilatant slip onset its Newton cycles, docs/fault_bounds.md).
     """
 
     def __init__(self, fm: FracturedMesh, mech_data: MechanicsData, flow_data: FlowData,
                  flow_boundary: Mapping | None = None, *, fracture_boundary: Mapping | None = None,
                  cell_source=0.0, fracture_source=0.0, alpha=None, fracture_alpha=None,
                  solver: LinearSolver | None = None, newton: NewtonOptions | None = None,
-                 initial_traction=None, dilatancy=0.0, pressure_stabilisation: float = STABILISATION):
+                 initial_traction=None, dilatancy=0.0, pressure_stabilisation: float = STABILISATION,
+                 conductivity_aperture: str = "previous"):
         t0 = time.perf_counter()
+        if conductivity_aperture not in APERTURES:
+            raise InputError("conductivity_aperture", f"must be one of {', '.join(APERTURES)}, got "
+                             f"{conductivity_aperture!r}")
+        self.conductivity_aperture = conductivity_aperture
         if mech_data.matrix_pressure is not None or mech_data.fracture_pressure is not None:
             raise InputError("mechanics.pressure", "the coupled model computes p_m and p_f: leave "
                              "matrix_pressure and fracture_pressure unset")
@@ -360,6 +371,16 @@ class Poromechanics:
         # wrapped later, e.g. by benchmarks/dump_jacobians.py, gets what this one got)
         self.blockwise = bool(getattr(self.solver, "takes_blocks", False)) and self.layout is None
         self.pattern = self._blocks = None
+        self._implicit = None
+        if self.conductivity_aperture == "current" and self.n_ff:
+            if self.layout is not None or self.flow_layout is not None:
+                raise InputError("conductivity_aperture", "\"current\" runs on one process only; use "
+                                 "\"previous\" (the default) under mpiexec")
+            afp = self._af_pattern
+            self._implicit = ImplicitConductivity(self.asm.fracture_contributions(),
+                                                  afp.pattern.slot[afp.starts[0]:afp.starts[1]],
+                                                  self.flow_free_index, mech.jump_scalar, mech.free_index, d)
+        imp_rc = self._implicit.rc if self._implicit is not None else (np.zeros(0, np.int64),) * 2
         J = mech.jump_scalar.tocoo()                                 # per face: the dilatant aperture
         # G: u rows × p columns (the rows of G this rank keeps), and p rows × u columns from the
         # rows of Gᵀ it keeps: the same values, so that each rank has its rows of both blocks
@@ -380,12 +401,13 @@ class Poromechanics:
         drow, dcol = np.broadcast_to(frow[:, None], dkeep.shape)[dkeep], fcol[dkeep]
         it = np.int32 if n < 2**31 - 1 else np.int64
         if self.blockwise:
-            self._setup_blocks((gr[kg], gc[kg], G.data[kg]), (tr[kt], tc[kt], T.data[kt]), (drow, dcol))
+            self._setup_blocks((gr[kg], gc[kg], G.data[kg]), (tr[kt], tc[kt], T.data[kt]), (drow, dcol), imp_rc)
             return
         blocks, values = mech.jacobian_blocks(mech.c_jump.tocoo())   # A, Bᵀ, C_u, C_λ (per patch)
         self._cu = mech._cu
         ar, ac = self._af_rc
-        blocks += [(gr[kg], po + gc[kg]), (po + tr[kt], tc[kt]), (po + ar, po + ac), (po + drow, dcol)]
+        blocks += [(gr[kg], po + gc[kg]), (po + tr[kt], tc[kt]), (po + ar, po + ac), (po + drow, dcol),
+                   (po + imp_rc[0], imp_rc[1])]
         self.pattern = pat = jacobian_pattern(blocks, n, self.layout)
         # the elasticity and multiplier blocks never change; A's values are put into each step's
         # data from A itself (step_context) rather than kept as a data array of the whole pattern
@@ -422,7 +444,7 @@ class Poromechanics:
                                                near_nullspace=self.mech.rigid_modes(),
                                                options=self.solver.petsc_options)
 
-    def _setup_blocks(self, g_up, g_pu, dil):
+    def _setup_blocks(self, g_up, g_pu, dil, imp):
         """The patterns of the Jacobian's pressure blocks for :meth:`_linearise` by blocks (the
         (u, λ) blocks are the mechanics model's, :meth:`.mechanics.ContactMechanics.jacobian_by_blocks`).
 
@@ -430,11 +452,12 @@ class Poromechanics:
         ----------
         g_up, g_pu : (rows, cols, values) of G (free u × free p) and Gᵀ (free p × free u), m^d
         dil : (rows, cols) of the dilatancy entries (free p × free u)
+        imp : (rows, cols) of the implicit conductivities' entries (free p × free u; empty without)
         """
         nfree, npf = self.mech.free.size, self.flow_free.size
         it = np.int32 if max(nfree, npf) < 2**31 - 1 else np.int64
         up = Pattern.build(g_up[0], g_up[1], (nfree, npf))
-        pu = BlockPattern.build([(g_pu[0], g_pu[1]), dil], (npf, nfree))
+        pu = BlockPattern.build([(g_pu[0], g_pu[1]), dil, imp], (npf, nfree))
         # F's entries, from the flow pattern's free part: rows ascending and columns ascending in
         # each row (the free numbering keeps the order), so its CSR structure is (ar, ac) itself
         ar, ac = self._af_rc
@@ -709,10 +732,13 @@ class Poromechanics:
 
     def _linearise(self, x, ctx) -> Linearisation:
         mech, d, nf = self.mech, self.dim, self.n_ff
-        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old), rel_old = ctx
+        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old), rel_old, imp_old = ctx
         u, lam, p = self._split(x, udir, p_dir, s)
         qc = (mech.Jcv @ u).reshape(mech.n_c, d)                     # patch-mean jumps (contact rows)
         C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, qc, qc - q_old, mech.c_normal, mech.c_area)
+        imp_vals = imp_dpp = None
+        if imp_old is not None:
+            A_dt, abs_A, imp_vals, imp_dpp = self._implicit_terms(u, p, s, A_dt, imp_old)
         cs = self._coupling_sign
         # on N ranks A, G, Gᵀ, A_dt and the |·| are RowBlocks: each product is this rank's rows and
         # an Allgatherv, the serial values bit for bit (solvers/distributed.py)
@@ -741,8 +767,13 @@ class Poromechanics:
         if self.blockwise:
             Gup, pu_data, Fp = j_step
             pu = self._blocks["pu"][0]
-            if np.any(dil_vals):
-                pu_data = pu.add(pu_data.copy(), 1, dil_vals)
+            if np.any(dil_vals) or imp_vals is not None:
+                pu_data = pu_data.copy()
+                if np.any(dil_vals):
+                    pu.add(pu_data, 1, dil_vals)
+                if imp_vals is not None:
+                    pu.add(pu_data, 2, imp_vals)
+                    Fp = sp.csr_array((Fp.data - imp_dpp, Fp.indices, Fp.indptr), shape=Fp.shape)
             Jm = mech.jacobian_by_blocks(cu, dC_dlam * (b * b)[:, None, None])
             Jac = BlockJacobian(Jm.uu, Jm.ul, Jm.lu, Jm.ll, Gup, pu.matrix(pu_data), Fp)
         else:
@@ -750,7 +781,10 @@ class Poromechanics:
             # blocks in pattern order 2, 3, then 7 after the step's 4–6: the sums of pat.fill bit for bit
             data = pat.add(j_step.copy(), 2, pat.take(2, cu))
             pat.add(data, 3, pat.take(3, dC_dlam * (b * b)[:, None, None]))
-            Jac = pat.matrix(pat.add(data, 7, pat.take(7, dil_vals)))
+            pat.add(data, 7, pat.take(7, dil_vals))
+            if imp_vals is not None:
+                pat.add(pat.add(data, 8, pat.take(8, imp_vals)), 6, pat.take(6, -imp_dpp))
+            Jac = pat.matrix(data)
             del data
             if self.layout is not None:
                 Jac = OwnedRows(Jac, self.layout)
@@ -776,8 +810,41 @@ class Poromechanics:
                         s[ff] * np.sqrt(np.maximum(den, 1e-300))[kind])
         # the dilatant aperture is smooth, not piecewise linear: a step that keeps the contact
         # states is not exact, and convergence needs a small increment as well
-        return Linearisation(res, Jac, norms, counts, state,
-                             piecewise_linear=not (nf and np.any(self.tan_psi > 0)), row_scale=w)
+        return Linearisation(res, Jac, norms, counts, state, row_scale=w,
+                             piecewise_linear=not (nf and (np.any(self.tan_psi > 0) or imp_old is not None)))
+
+    def _implicit_terms(self, u, p, s, A_dt, old):
+        """The step matrix at the iterate's conductivities and the implicit terms' Jacobian parts
+        (:mod:`.implicit_conductivity`): C_f and Λ_f at max(d_f(u), d_f^c) (a converged state has
+        d_f ≥ d_f^c; an iterate below it gets the closed conductivities and no derivative).
+
+        Returns
+        -------
+        A : csr (n_flow, n_flow) Δt A_f(d_f) + S_δ on A_dt's structure, m³/Pa
+        abs_A : |A| (the flow rows' term magnitudes)
+        pu : values of the p × u entries (the pattern's block of ``ImplicitConductivity.rc``)
+        dpp : change of the free–free flow entries of the scaled Jacobian (−dpp is added)
+        """
+        ex0, fc0, dt = old
+        d = self.dim
+        u = u.reshape(-1, d)
+        d_raw = self.aperture_of(u)
+        ap = np.maximum(d_raw, self.closed_aperture)
+        ex, fc = self.conductivities(ap)
+        hi, lo = self.conductivities(ap * (1 + LAW_STEP)), self.conductivities(ap * (1 - LAW_STEP))
+        h2 = 2 * LAW_STEP * ap
+        grad = -self.mech.normal.copy()                          # ∂d_σ/∂[[u]]_σ
+        if np.any(self.tan_psi > 0):
+            grad += self.tan_psi[:, None] * self._tangential_slip(self.jumps(u))[1]
+        grad[d_raw < self.closed_aperture] = 0.0
+        imp = self._implicit
+        dA = imp.matrix_change(ex0, fc0, ex, fc, dt, A_dt.data.size)
+        A = sp.csr_array((A_dt.data + dA, A_dt.indices, A_dt.indptr), shape=A_dt.shape)
+        abs_A = sp.csr_array((np.abs(A.data), A_dt.indices, A_dt.indptr), shape=A_dt.shape)
+        pu = imp.coupling_values(p, (hi[0] - lo[0]) / h2, (hi[1] - lo[1]) / h2, grad, s, dt)
+        ar, ac = self._af_rc
+        sf = s[self.flow_free]
+        return A, abs_A, pu, dA[self._af_keep] * sf[ar] * sf[ac]
 
     def step_context(self, old: PoroState, dt: float, t: float):
         """Everything fixed during the Newton loop of the step old → t, and the first iterate x0
@@ -826,7 +893,9 @@ class Poromechanics:
             j_step = pat.add(pat.add(pat.add(j_step, 4, -cs * g_vals[0]), 5, -g_vals[1]), 6, -af_vals)
             del g_vals
         del af_vals
-        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old), rel_old)
+        # the implicit conductivities' reference: the coefficients A_dt was built with, and Δt
+        imp_old = (*self.conductivities(old.aperture), dt) if self._implicit is not None else None
+        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old), rel_old, imp_old)
         x0 = np.concatenate([u_old[mech.free], (mech.patch_values(old.lam) / mech.law.beta[:, None]).ravel(),
                              old.p[self.flow_free] / sf])
         return ctx, x0
@@ -870,8 +939,10 @@ class Poromechanics:
         u, lam, p = self._split(res.x, udir, p_dir, s)
         u = u.reshape(-1, d)
         sflux = self.stabilisation_weights * self.stabilisation_jumps(p - old.p) / dt
-        new = PoroState(t, u, mech.face_values(lam), p, self.aperture_of(u),
-                        np.asarray(mech.face_values(res.active_set), np.int8), old.aperture, sflux)
+        ap = self.aperture_of(u)
+        flux_ap = np.maximum(ap, self.closed_aperture) if self._implicit is not None else old.aperture
+        new = PoroState(t, u, mech.face_values(lam), p, ap, np.asarray(mech.face_values(res.active_set), np.int8),
+                        flux_ap, sflux)
         self._last_settled = old.state is not None and np.array_equal(new.state, old.state)
         c = res.counts
         info = StepInfo(res.iterations, res.residual, c.get("open", 0), c.get("stick", 0), c.get("slip", 0),
