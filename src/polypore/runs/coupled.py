@@ -151,32 +151,46 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
 
         def step(st, ta, tb):
             new, info = model.step(st, tb - ta, tb)
-            return new, {"info": info}
+            return new, {"info": info, "dt": tb - ta}
+
+        limit = schedule.max_conductivity_growth
+
+        def accept(sub):
+            """None, or why a converged step is redone as two half steps (time.max_conductivity_growth)."""
+            g = sub["info"].conductivity_growth
+            return None if limit is None or g <= limit else f"a fracture conductivity grew {g:.2g}-fold, above {limit:g}"
 
         def on_step(rec, st, is_out):
             info = rec.info["info"]
-            row = {"time": rec.time, "dt": rec.dt, "newton_iterations": info.iterations, "residual": info.residual,
-                   "open": info.open, "stick": info.stick, "slip": info.slip, "seconds": rec.seconds,
-                   "cuts": rec.cuts, "history": info.history}
-            if info.linear_iterations:
-                row["linear_iterations"] = info.linear_iterations
-            row["conductivity_growth"] = info.conductivity_growth
-            if info.conductivity_growth > CONDUCTIVITY_GROWTH_WARN and not warned:
+            subs = [sub["info"] for sub in rec.substeps]
+            growth = max(i.conductivity_growth for i in subs)
+            row = {"time": rec.time, "dt": rec.dt, "newton_iterations": sum(i.iterations for i in subs),
+                   "residual": info.residual, "open": info.open, "stick": info.stick, "slip": info.slip,
+                   "seconds": rec.seconds, "cuts": rec.cuts, "history": info.history}
+            if len(subs) > 1 or rec.rejected:
+                row["substeps"] = {"accepted": len(subs), "rejected": rec.rejected, "kept_above_limit": rec.forced,
+                                   "smallest_dt": min(sub["dt"] for sub in rec.substeps)}
+            lin_its = [k for i in subs for k in (i.linear_iterations or [])]
+            if lin_its:
+                row["linear_iterations"] = lin_its
+            row["conductivity_growth"] = growth
+            if growth > CONDUCTIVITY_GROWTH_WARN and not warned:
                 warned.append(rec.index)
                 log.warning("step %d (t = %g s): the fracture conductivity grew up to %.1e-fold on faces that carry "
                             "flow; the step's fluxes use the previous step's conductivity (scheme.md §6), so slip and "
                             "fault pressure after it may depend on time.step (here Δt = %g s): compare with a "
-                            "shorter step (docs/fault_bounds.md, \"The time step\"; summary.json "
-                            "steps[].conductivity_growth)",
-                            rec.index, rec.time, info.conductivity_growth, rec.dt)
+                            "shorter step, or set time.max_conductivity_growth (docs/fault_bounds.md, \"The time "
+                            "step\"; summary.json steps[].conductivity_growth)",
+                            rec.index, rec.time, growth, rec.dt)
             if info.energy is not None:
-                row["energy"] = info.energy.summary()
-                energies.append(info.energy)
+                row["energy"] = info.energy.summary()           # the last sub-step's; all are checked
+                energies.extend(i.energy for i in subs if i.energy is not None)
             steps.append(row)
-            lin = f", {sum(info.linear_iterations)} GMRES iterations" if info.linear_iterations else ""
-            log.info("step %d/%d: t = %g s, %d Newton iterations (residual %.1e)%s, open %d, stick %d, slip %d, "
-                     "%.2f s (%s)", rec.index, len(schedule.times()) - 1, rec.time, info.iterations, info.residual, lin,
-                     info.open, info.stick, info.slip, rec.seconds, rec.progress)
+            lin = f", {len(lin_its) and sum(lin_its)} GMRES iterations" if lin_its else ""
+            sub = f" in {len(subs)} sub-steps" if len(subs) > 1 else ""
+            log.info("step %d/%d: t = %g s, %d Newton iterations%s (residual %.1e)%s, open %d, stick %d, slip %d, "
+                     "%.2f s (%s)", rec.index, len(schedule.times()) - 1, rec.time, row["newton_iterations"], sub,
+                     info.residual, lin, info.open, info.stick, info.slip, rec.seconds, rec.progress)
             if rec.index == len(schedule.times()) - 1:
                 # no solve follows: the solver's matrices and set-ups (a third of a rank's memory
                 # at C5 127k) go before the last outputs and the plots
@@ -186,7 +200,8 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                 output(k_out[0], rec.index, st)
                 k_out[0] += 1
 
-        state, _ = march(schedule, state, step, on_step)
+        state, _ = march(schedule, state, step, on_step, accept=accept if limit is not None else None,
+                         max_rejections=schedule.growth_cuts)
         violations = check_energy(energies)
         for v in violations:
             log.warning("energy estimate violated: %s", v)
@@ -218,7 +233,9 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             "energy_check": {"violations": violations, "steps_checked": len(energies)},
             "conductivity_growth": {"max": max((r["conductivity_growth"] for r in steps), default=1.0),
                                     "warned_at_step": warned[0] if warned else None,
-                                    "warn_above": CONDUCTIVITY_GROWTH_WARN},
+                                    "warn_above": CONDUCTIVITY_GROWTH_WARN, "step_limit": limit,
+                                    "substeps": sum(r.get("substeps", {}).get("accepted", 1) for r in steps),
+                                    "rejected": sum(r.get("substeps", {}).get("rejected", 0) for r in steps)},
             "fracture_means": series,
             "slip_onset": onset or None,
             "monitor": {"time": monitor["time"], "overpressure_at_points": monitor["points"],

@@ -1,5 +1,6 @@
 """The time loop of transient runs: implicit-Euler steps over a :class:`TimeSchedule`, a failed
-step retried as two half steps (step cutting)."""
+step retried as two half steps (step cutting), and a step the caller rejects (``accept``) redone
+as two half steps as well (step control within a schedule step)."""
 
 from __future__ import annotations
 
@@ -17,23 +18,29 @@ log = logging.getLogger("polypore")
 
 @dataclass
 class StepRecord:
-    """What happened in one accepted step."""
+    """What happened in one schedule step (several sub-steps when it was cut or rejected)."""
 
     index: int
     time: float
     dt: float
-    info: dict = field(default_factory=dict)
-    cuts: int = 0
+    info: dict = field(default_factory=dict)        # the last accepted sub-step's
+    cuts: int = 0                                    # deepest halving (failures and rejections)
     seconds: float = 0.0
     progress: str = ""      # 'elapsed …, about … left' after this step
+    substeps: list = field(default_factory=list)    # info of every accepted sub-step, in order
+    rejected: int = 0                                # sub-steps solved and then rejected by ``accept``
+    forced: int = 0                                  # sub-steps ``accept`` rejected at the depth limit (kept)
 
 
-def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | None = None, label: str = "step"):
+def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | None = None, label: str = "step",
+          accept: Callable | None = None, max_rejections: int = 0):
     """Advance ``state`` over the schedule with implicit-Euler steps ``step(state, t_old, t_new) ->
     (state, info)``; a step that raises RunError is retried as two half steps, recursively, at
     most ``schedule.max_cuts`` times, then the run stops with a RunError saying where and why.
 
-    ``on_step(record, state, is_output)`` is called after every accepted schedule step.
+    ``accept(info) -> None | str`` may reject a converged step (the string says why): it is then
+    redone as two half steps, at most ``max_rejections`` halvings deep; at that depth the step is
+    kept with a warning. ``on_step(record, state, is_output)`` is called after every schedule step.
     Returns the final state and the list of StepRecord.
     """
     times = schedule.times()
@@ -42,8 +49,10 @@ def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | Non
         for k in range(1, len(times)):
             t0, t1 = float(times[k - 1]), float(times[k])
             tic = _time.perf_counter()
-            state, info, cuts = _advance(state, t0, t1, step, schedule.max_cuts, 0)
-            rec = StepRecord(k, t1, t1 - t0, info, cuts, _time.perf_counter() - tic)
+            rec = StepRecord(k, t1, t1 - t0)
+            state = _advance(state, t0, t1, step, schedule.max_cuts, 0, 0, accept, max_rejections, rec)
+            rec.info = rec.substeps[-1]
+            rec.seconds = _time.perf_counter() - tic
             rec.progress = bar.advance()
             records.append(rec)
             if on_step is not None:
@@ -51,16 +60,30 @@ def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | Non
     return state, records
 
 
-def _advance(state, t0, t1, step, max_cuts, depth):
+def _advance(state, t0, t1, step, max_cuts, fails, rejects, accept, max_rejections, rec):
+    """State at t1 from t0, cutting failed and rejected steps; accepted infos go to ``rec``."""
+    rec.cuts = max(rec.cuts, fails + rejects)
     try:
         new, info = step(state, t0, t1)
-        return new, info, depth
     except RunError as exc:
-        if depth >= max_cuts:
-            raise RunError(f"the step from t = {t0:g} s to {t1:g} s failed after {depth} cut(s) of the time step "
-                           f"(smallest Δt {t1 - t0:g} s): {exc}") from None
+        if fails >= max_cuts:
+            raise RunError(f"the step from t = {t0:g} s to {t1:g} s failed after {fails + rejects} cut(s) of the "
+                           f"time step (smallest Δt {t1 - t0:g} s): {exc}") from None
         log.warning("step %g → %g s failed (%s); retrying as two half steps", t0, t1, str(exc).split(":")[0])
-        tm = 0.5 * (t0 + t1)
-        mid, _, d1 = _advance(state, t0, tm, step, max_cuts, depth + 1)
-        new, info, d2 = _advance(mid, tm, t1, step, max_cuts, depth + 1)
-        return new, info, max(d1, d2)
+        return _halves(state, t0, t1, step, max_cuts, fails + 1, rejects, accept, max_rejections, rec)
+    why = accept(info) if accept is not None else None
+    if why:
+        if rejects < max_rejections:
+            rec.rejected += 1
+            log.info("step %g → %g s rejected (%s); redoing it as two half steps", t0, t1, why)
+            return _halves(state, t0, t1, step, max_cuts, fails, rejects + 1, accept, max_rejections, rec)
+        rec.forced += 1
+        log.warning("step %g → %g s kept after %d halvings although %s", t0, t1, rejects, why)
+    rec.substeps.append(info)
+    return new
+
+
+def _halves(state, t0, t1, step, max_cuts, fails, rejects, accept, max_rejections, rec):
+    tm = 0.5 * (t0 + t1)
+    mid = _advance(state, t0, tm, step, max_cuts, fails, rejects, accept, max_rejections, rec)
+    return _advance(mid, tm, t1, step, max_cuts, fails, rejects, accept, max_rejections, rec)

@@ -9,6 +9,8 @@
     output_every = 1              # write outputs every n steps (and at the end), or
     output_times = [500, 2000]    # at these times (steps are shortened to land on them)
     max_cuts = 4                  # halvings of a step whose Newton loop fails before giving up
+    max_conductivity_growth = 1e3 # poromechanics: halve a step in which a C_f grows more (optional)
+    growth_cuts = 8               # at most this many halvings for it
 """
 
 from __future__ import annotations
@@ -30,6 +32,8 @@ class TimeSchedule:
     output_every: int = 1
     output_times: tuple = ()
     max_cuts: int = 4
+    max_conductivity_growth: float | None = None
+    growth_cuts: int = 8
 
     def times(self) -> np.ndarray:
         """(n + 1,) step end times, including every output time exactly."""
@@ -62,4 +66,6 @@ def parse_schedule(spec, required: bool = False) -> TimeSchedule | None:
             raise InputError("time", "is required for this case: give [time] with end and step (s)")
         return None
     outs = () if tt.output_times is None else tuple(sorted(set(tt.output_times)))
-    return TimeSchedule(tt.start, tt.end, tt.step, tt.output_every, outs, tt.max_cuts)
+    return TimeSchedule(tt.start, tt.end, tt.step, tt.output_every, outs, tt.max_cuts,
+                        None if tt.max_conductivity_growth is None else float(tt.max_conductivity_growth),
+                        int(tt.growth_cuts))

@@ -80,6 +80,11 @@ class Time(Table):
                                                          "steps are shortened to land on them")
     max_cuts: number(ge=0, le=30, integer=True) = Field(4, description="halvings of a step whose Newton loop "
                                                         "fails before the run stops")
+    max_conductivity_growth: number(gt=1) | None = Field(
+        None, description="poromechanics: redo a step as two half steps while some fracture face's conductivity "
+        "grows more than this factor in it (a slip onset; the conductivities lag one step); default: no limit")
+    growth_cuts: number(ge=0, le=30, integer=True) = Field(8, description="halvings of a step allowed by "
+                                                           "max_conductivity_growth (then the step is kept)")
 
     @model_validator(mode="after")
     def _advances(self):
