@@ -126,3 +126,23 @@ def test_conductivity_growth_flags_the_step_of_a_dilatant_onset(tmp_path, cli):
     assert k is not None and s["steps"][k - 1]["conductivity_growth"] > 1e3     # ×2e4 at 30-day steps
     assert all(r["conductivity_growth"] <= 1e3 for r in s["steps"][:k - 1])
     assert err.count("may depend on time.step") == 1, err
+
+
+def test_conductivity_growth_limit_cuts_the_onset_steps(tmp_path, cli):
+    """time.max_conductivity_growth: the onset steps are redone in halves until no face's C_f grows
+    more than the limit in a sub-step; summary.json counts them and the lag warning stays silent."""
+    import json
+
+    out = tmp_path / "c6"
+    args = [a for o in [*COARSE, "time.step=2592000", "time.max_conductivity_growth=100"] for a in ("--set", o)]
+    code, _, err = cli("run", "fault-injection", "--out", str(out), *args)
+    assert code == 0, err
+    s = json.loads((out / "summary.json").read_text())
+    g = s["conductivity_growth"]
+    assert g["step_limit"] == 100 and g["rejected"] > 0 and g["substeps"] > len(s["steps"])
+    assert all(r["conductivity_growth"] <= 100 for r in s["steps"])
+    cut = [r for r in s["steps"] if "substeps" in r]
+    assert cut and all(r["substeps"]["accepted"] >= 2 and r["substeps"]["kept_above_limit"] == 0 for r in cut)
+    assert all(r["substeps"]["smallest_dt"] < r["dt"] for r in cut)
+    assert s["energy_check"]["steps_checked"] == g["substeps"] and not s["energy_check"]["violations"]
+    assert "may depend on time.step" not in err and "rejected" in err

@@ -21,6 +21,8 @@ def test_times_hit_output_times_and_end():
     ({"end": 10.0, "step": 0.0}, "time.step", "does not advance"),
     ({"end": 10.0, "step": 1.0, "output_times": [5.0, 12.0]}, "time.output_times", "outside the run"),
     ({"end": 10.0, "step": 1.0, "typo": 1}, "time.typo", "unknown key"),
+    ({"end": 10.0, "step": 1.0, "max_conductivity_growth": 1.0}, "time.max_conductivity_growth", "must be > 1, got 1.0"),
+    ({"end": 10.0, "step": 1.0, "growth_cuts": 31}, "time.growth_cuts", "31"),
     # issue 25: 100,000 output times were accepted ("about 14 h left")
     ({"end": 1e5, "step": 1.0, "output_times": [float(k) for k in range(1, 100_001)]}, "time.output_times",
      "100,000 distinct output times; allowed: at most 10,000"),
@@ -47,6 +49,37 @@ def test_march_cuts_failing_steps_then_gives_up():
     assert state == pytest.approx(4.0) and [r.cuts for r in recs] == [1, 1]
     with pytest.raises(RunError, match="failed after 1 cut"):
         march(TimeSchedule(0.0, 4.0, 4.0, max_cuts=1), 0.0, step)
+
+
+def test_march_redoes_steps_the_caller_rejects():
+    """``accept`` rejecting a converged step (time.max_conductivity_growth): it is redone as two
+    half steps, recursively, kept with a count at the depth limit; failures keep their own limit."""
+    s = TimeSchedule(0.0, 4.0, 4.0, max_cuts=1)
+    calls = []
+
+    def step(state, t0, t1):
+        calls.append(t1 - t0)
+        return state + (t1 - t0), {"dt": t1 - t0}
+
+    def accept(info):
+        return "too long" if info["dt"] > 1.0 else None
+
+    state, (rec,) = march(s, 0.0, step, accept=accept, max_rejections=5)
+    assert state == pytest.approx(4.0)
+    assert [i["dt"] for i in rec.substeps] == [1.0] * 4 and rec.rejected == 3 and rec.forced == 0 and rec.cuts == 2
+    assert rec.info is rec.substeps[-1] and calls == [4.0, 2.0, 1.0, 1.0, 2.0, 1.0, 1.0]
+    state, (rec,) = march(s, 0.0, step, accept=accept, max_rejections=1)
+    assert [i["dt"] for i in rec.substeps] == [2.0, 2.0] and rec.rejected == 1 and rec.forced == 2
+
+    def fragile(state, t0, t1):
+        if t1 - t0 > 2.0:
+            raise RunError("Newton did not converge")
+        return step(state, t0, t1)
+
+    state, (rec,) = march(s, 0.0, fragile, accept=lambda i: "long" if i["dt"] > 0.5 else None, max_rejections=2)
+    assert state == pytest.approx(4.0) and [i["dt"] for i in rec.substeps] == [0.5] * 8 and rec.cuts == 3
+    state, (rec,) = march(s, 0.0, step)                       # without accept: one step
+    assert len(rec.substeps) == 1 and rec.rejected == 0
 
 
 def test_newton_gives_up_early_when_the_residual_stalls():
