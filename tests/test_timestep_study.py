@@ -32,3 +32,32 @@ def test_slipped_and_slip_state_areas_max_slip_and_pressures(tmp_path):
     assert m["mean_p_f"] == pytest.approx([0.0, 1.25e6, 2.5e6])
     with pytest.raises(SystemExit, match="no output at t = 345600 s"):
         _module().measures(tmp_path, np.array([5.0]) * 86400.0 - 86400.0, slipped_mm=0.1)
+
+
+def _bounds_module():
+    spec = importlib.util.spec_from_file_location("fault_bounds", ROOT / "benchmarks" / "fault_bounds.py")
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_refinement_averages_the_fine_slip_onto_the_coarse_faces(tmp_path):
+    """fault_bounds.py --refinement: each fine face goes to the nearest coarse face of its fault;
+    the fine slip averaged by area there is compared with the coarse slip, and potencies."""
+    head = "step,time,fracture,face,x,y,z,area,jump_t,state,p_f,lambda_n,lambda_t"
+
+    def write(folder, faces):                      # faces: (x, area, slip at t = 1 day)
+        folder.mkdir()
+        rows = [head]
+        for k, t in enumerate((0.0, 86400.0)):
+            rows += [f"{k},{t},F,{i},{x},0,0,{a},{s * k},stick,0,1,0" for i, (x, a, s) in enumerate(faces)]
+        (folder / "fractures.csv").write_text("\n".join(rows) + "\n")
+
+    write(tmp_path / "c", [(0.0, 2.0, 1e-3), (1.0, 2.0, 3e-3)])
+    write(tmp_path / "f", [(-0.25, 1.0, 0.0), (0.25, 1.0, 2e-3), (0.75, 0.5, 6e-3), (1.25, 1.5, 2e-3)])
+    r = _bounds_module().refinement(tmp_path / "c", tmp_path / "f")["F"]
+    assert r["time_s"] == [0.0, 86400.0]
+    assert r["max_slip_coarse"][1] == 3e-3 and r["max_slip_fine"][1] == 6e-3
+    # coarse face 0 gets (0 + 2e-3)/2 = 1e-3, face 1 (0.5·6e-3 + 1.5·2e-3)/2 = 3e-3
+    assert r["max_slip_fine_on_coarse"][1] == pytest.approx(3e-3)
+    assert r["potency_coarse"][1] == pytest.approx(8e-3) and r["potency_fine"][1] == pytest.approx(8e-3)
