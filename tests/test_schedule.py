@@ -51,34 +51,47 @@ def test_march_cuts_failing_steps_then_gives_up():
         march(TimeSchedule(0.0, 4.0, 4.0, max_cuts=1), 0.0, step)
 
 
-def test_march_redoes_steps_the_caller_rejects():
-    """``accept`` rejecting a converged step (time.max_conductivity_growth): it is redone as two
-    half steps, recursively, kept with a count at the depth limit; failures keep their own limit."""
-    s = TimeSchedule(0.0, 4.0, 4.0, max_cuts=1)
+def test_march_adapts_the_sub_steps_to_the_callers_test():
+    """``accept`` rejecting a converged step (time.max_conductivity_growth): the sub-step halves on a
+    rejection, doubles after an acceptance (up to the schedule step) and carries over to the next
+    schedule step; at the smallest size a rejected sub-step is kept with a count; failures halve it
+    too, at most max_cuts times in a row."""
+    s = TimeSchedule(0.0, 8.0, 4.0, max_cuts=1)
     calls = []
 
     def step(state, t0, t1):
-        calls.append(t1 - t0)
-        return state + (t1 - t0), {"dt": t1 - t0}
+        calls.append((t0, t1))
+        return state + (t1 - t0), {"dt": t1 - t0, "t": t1}
 
-    def accept(info):
-        return "too long" if info["dt"] > 1.0 else None
+    def accept(info):                       # sub-steps starting before t = 3 s must be ≤ 1 s
+        return "too long" if info["dt"] > 1.0 and info["t"] - info["dt"] < 3.0 else None
 
-    state, (rec,) = march(s, 0.0, step, accept=accept, max_rejections=5)
-    assert state == pytest.approx(4.0)
-    assert [i["dt"] for i in rec.substeps] == [1.0] * 4 and rec.rejected == 3 and rec.forced == 0 and rec.cuts == 2
-    assert rec.info is rec.substeps[-1] and calls == [4.0, 2.0, 1.0, 1.0, 2.0, 1.0, 1.0]
-    state, (rec,) = march(s, 0.0, step, accept=accept, max_rejections=1)
-    assert [i["dt"] for i in rec.substeps] == [2.0, 2.0] and rec.rejected == 1 and rec.forced == 2
+    state, (r1, r2) = march(s, 0.0, step, accept=accept, max_rejections=5)
+    assert state == pytest.approx(8.0)
+    # (3, 4) lands on the schedule step's end: h stays 2 s for the next one, then grows to 4 s
+    assert calls == [(0, 4), (0, 2), (0, 1), (1, 3), (1, 2), (2, 4), (2, 3), (3, 4), (4, 6), (6, 8)]
+    assert [i["dt"] for i in r1.substeps] == [1.0] * 4 and r1.rejected == 4 and r1.cuts == 2
+    assert [i["dt"] for i in r2.substeps] == [2.0, 2.0] and r2.rejected == 0 and r1.info is r1.substeps[-1]
+    state, (r1, _) = march(s, 0.0, step, accept=accept, max_rejections=1)     # smallest sub-step 2 s
+    assert [i["dt"] for i in r1.substeps] == [2.0, 2.0] and r1.rejected == 1 and r1.forced == 2
 
     def fragile(state, t0, t1):
         if t1 - t0 > 2.0:
             raise RunError("Newton did not converge")
         return step(state, t0, t1)
 
-    state, (rec,) = march(s, 0.0, fragile, accept=lambda i: "long" if i["dt"] > 0.5 else None, max_rejections=2)
-    assert state == pytest.approx(4.0) and [i["dt"] for i in rec.substeps] == [0.5] * 8 and rec.cuts == 3
-    state, (rec,) = march(s, 0.0, step)                       # without accept: one step
+    state, (r1, r2) = march(s, 0.0, fragile, accept=accept, max_rejections=3)
+    assert state == pytest.approx(8.0) and [i["dt"] for i in r1.substeps] == [1.0, 1.0, 1.0, 1.0]
+    assert state == pytest.approx(8.0) and [i["dt"] for i in r2.substeps] == [2.0, 2.0]
+
+    def broken(state, t0, t1):
+        if t1 - t0 > 0.5:
+            raise RunError("Newton did not converge")
+        return step(state, t0, t1)
+
+    with pytest.raises(RunError, match="failed after 1 cut"):        # max_cuts = 1 failure in a row
+        march(s, 0.0, broken, accept=accept, max_rejections=3)
+    state, (rec, _) = march(s, 0.0, step)                       # without accept: one step each
     assert len(rec.substeps) == 1 and rec.rejected == 0
 
 

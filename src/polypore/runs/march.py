@@ -1,6 +1,6 @@
 """The time loop of transient runs: implicit-Euler steps over a :class:`TimeSchedule`, a failed
-step retried as two half steps (step cutting), and a step the caller rejects (``accept``) redone
-as two half steps as well (step control within a schedule step)."""
+step retried as two half steps (step cutting); with an ``accept`` test, sub-steps of an adapted
+size that halves on a rejected or failed sub-step and doubles after an accepted one."""
 
 from __future__ import annotations
 
@@ -8,6 +8,8 @@ import logging
 import time as _time
 from dataclasses import dataclass, field
 from typing import Callable
+
+import numpy as np
 
 from ..core.errors import RunError
 from ..io.progress import Progress
@@ -38,19 +40,28 @@ def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | Non
     (state, info)``; a step that raises RunError is retried as two half steps, recursively, at
     most ``schedule.max_cuts`` times, then the run stops with a RunError saying where and why.
 
-    ``accept(info) -> None | str`` may reject a converged step (the string says why): it is then
-    redone as two half steps, at most ``max_rejections`` halvings deep; at that depth the step is
-    kept with a warning. ``on_step(record, state, is_output)`` is called after every schedule step.
-    Returns the final state and the list of StepRecord.
+    ``accept(info) -> None | str`` may reject a converged step (the string says why). With it, each
+    schedule step is covered by sub-steps of an adapted size h: a rejected or failed sub-step is
+    redone at h/2, an accepted one lets the next try 2h (never beyond the schedule step), and h
+    carries over to the next schedule step, so that a slip front moving for days is not found
+    again by a cascade of rejections every day. h stays ≥ Δt/2^``max_rejections`` (a sub-step
+    rejected at that size is kept with a warning); a failure at h is retried at most
+    ``schedule.max_cuts`` times in a row. ``on_step(record, state, is_output)`` is called after
+    every schedule step. Returns the final state and the list of StepRecord.
     """
     times = schedule.times()
     records = []
+    h = [float(schedule.step)]                      # the adapted sub-step (with ``accept``)
     with Progress(len(times) - 1, f"{label}s") as bar:
         for k in range(1, len(times)):
             t0, t1 = float(times[k - 1]), float(times[k])
             tic = _time.perf_counter()
             rec = StepRecord(k, t1, t1 - t0)
-            state = _advance(state, t0, t1, step, schedule.max_cuts, 0, 0, accept, max_rejections, rec)
+            if accept is None:
+                state = _advance(state, t0, t1, step, schedule.max_cuts, 0, 0, None, 0, rec)
+            else:
+                state = _adapted(state, t0, t1, step, schedule.max_cuts, accept, rec, h, float(schedule.step),
+                                 max_rejections)
             rec.info = rec.substeps[-1]
             rec.seconds = _time.perf_counter() - tic
             rec.progress = bar.advance()
@@ -81,6 +92,43 @@ def _advance(state, t0, t1, step, max_cuts, fails, rejects, accept, max_rejectio
         log.warning("step %g → %g s kept after %d halvings although %s", t0, t1, rejects, why)
     rec.substeps.append(info)
     return new
+
+
+def _adapted(state, t0, t1, step, max_cuts, accept, rec, h, dt, max_rejections):
+    """State at t1 from t0 by sub-steps of the adapted size h[0] ≤ dt (see :func:`march`)."""
+    h_min = dt / 2.0 ** max_rejections
+    t, fails = t0, 0
+    while t < t1 - 1e-9 * (t1 - t0):
+        size = min(h[0], t1 - t)
+        if t1 - (t + size) < 1e-6 * size:          # land on t1 (no sliver sub-step)
+            size = t1 - t
+        try:
+            new, info = step(state, t, t + size)
+        except RunError as exc:
+            if fails >= max_cuts:
+                raise RunError(f"the step from t = {t:g} s to {t + size:g} s failed after {fails} cut(s) of the "
+                               f"time step (smallest Δt {size:g} s): {exc}") from None
+            log.warning("step %g → %g s failed (%s); retrying with half the step", t, t + size,
+                        str(exc).split(":")[0])
+            fails += 1
+            rec.cuts = max(rec.cuts, fails)
+            h[0] = 0.5 * size
+            continue
+        why = accept(info)
+        if why and size > h_min * (1 + 1e-9):
+            rec.rejected += 1
+            log.info("step %g → %g s rejected (%s); redoing it with half the step", t, t + size, why)
+            h[0] = max(0.5 * size, h_min)
+            continue
+        if why:
+            rec.forced += 1
+            log.warning("step %g → %g s kept at the smallest sub-step (%g s) although %s", t, t + size, size, why)
+        rec.substeps.append(info)
+        rec.cuts = max(rec.cuts, int(round(np.log2(dt / size))) if size < dt else 0)
+        if size >= h[0] * (1 - 1e-9):                 # not a step shortened to land on t1
+            h[0] = min(2.0 * size, dt)
+        state, t, fails = new, t + size, 0
+    return state
 
 
 def _halves(state, t0, t1, step, max_cuts, fails, rejects, accept, max_rejections, rec):

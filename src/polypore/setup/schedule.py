@@ -10,7 +10,7 @@
     output_times = [500, 2000]    # at these times (steps are shortened to land on them)
     max_cuts = 4                  # halvings of a step whose Newton loop fails before giving up
     max_conductivity_growth = 1e3 # poromechanics: halve a step in which a C_f grows more (optional)
-    growth_cuts = 8               # at most this many halvings for it
+    growth_cuts = 8               # its smallest sub-step: step / 2^growth_cuts
 """
 
 from __future__ import annotations

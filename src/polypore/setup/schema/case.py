@@ -83,8 +83,8 @@ class Time(Table):
     max_conductivity_growth: number(gt=1) | None = Field(
         None, description="poromechanics: redo a step as two half steps while some fracture face's conductivity "
         "grows more than this factor in it (a slip onset; the conductivities lag one step); default: no limit")
-    growth_cuts: number(ge=0, le=30, integer=True) = Field(8, description="halvings of a step allowed by "
-                                                           "max_conductivity_growth (then the step is kept)")
+    growth_cuts: number(ge=0, le=30, integer=True) = Field(8, description="with max_conductivity_growth: the "
+                                                           "smallest sub-step is time.step / 2^growth_cuts")
 
     @model_validator(mode="after")
     def _advances(self):
