@@ -379,3 +379,33 @@ def test_reference_state_is_at_rest_without_loads():
     P.lam0 = -(n @ (-np.array([[7e6, 6e6], [6e6, 1e7]])).T)        # |τ| > 0.5 σ_n
     with pytest.raises(RunError, match="not an equilibrium"):
         P.reference_state(0.0)
+
+
+def test_bubble_slip_is_told_apart_from_a_slip_of_the_faults_sides():
+    """ContactMechanics.jump_parts splits each face's mean jump into its point-slot and bubble
+    parts (summing to the jump); runs/coupled.bubble_slip flags a face whose slip is its bubble's
+    (a cell-local soft mode, the runaway sliver of docs/fault_bounds.md) and not one whose sides moved."""
+    from polypore.runs.coupled import bubble_slip
+
+    P = shear_case(3, 4)
+    st = P.initial_state(1e5)
+    mech, net = P.mech, P.fm.network
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(st.u.shape) * 1e-3
+    pts, bub = mech.jump_parts(u)
+    assert np.allclose(pts + bub, P.jumps(u), rtol=0, atol=1e-15)
+    npt = mech.space.n_point_slots
+    assert np.any(np.abs(bub) > 0) and np.all(mech.jump_parts(np.r_[u[:npt], 0 * u[npt:]])[1] == 0)
+    n = mech.normal
+    t = np.cross(n[0], [1.0, 0.0, 0.0]) if abs(n[0, 0]) < 0.9 else np.cross(n[0], [0.0, 1.0, 0.0])
+    t /= np.linalg.norm(t)
+    moved = st.u.copy()
+    j = np.flatnonzero(mech.space.bubble_face == 0)[0] + npt          # the bubble slot of fracture face 0
+    moved[j] += 5e-3 * t
+    r = bubble_slip(P, type(st)(st.time, moved, st.lam, st.p, st.aperture, st.state), net)
+    assert r["faces"] == 1 and r["largest"]["face"] == 0 and r["largest"]["bubble_m"] > 4e-3
+    assert r["largest"]["nodal_m"] < 1e-12
+    # jumps of the nodes alone (bubbles at rest), above the slipped threshold: none is flagged
+    nodal = st.u + 10 * np.r_[u[:npt], 0 * u[npt:]]
+    assert np.linalg.norm(mech.jump_parts(nodal - st.u)[0], axis=1).min() > 1e-3
+    assert bubble_slip(P, type(st)(st.time, nodal, st.lam, st.p, st.aperture, st.state), net)["faces"] == 0
