@@ -39,7 +39,7 @@ def run(out: Path, days: float, cells, dilatancy: float, limit: float | None = N
            "--set", "parameters.mass_rate=100", "--set", f"time.step={days * DAY:g}",
            "--set", f"flow.dilatancy_angle={dilatancy:g}", "--out", str(out), "--json", str(out) + ".json"]
     if limit is not None:
-        cmd[-4:-4] = ["--set", f"time.max_conductivity_growth={limit:g}", "--set", "time.growth_cuts=10"]
+        cmd += ["--set", f"time.max_conductivity_growth={limit:g}", "--set", "time.growth_cuts=10"]
     print("running:", " ".join(cmd[1:]), flush=True)
     subprocess.run(cmd, check=True)
 

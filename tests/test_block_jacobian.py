@@ -93,11 +93,9 @@ def poro_pair():
     return _poro(LinearSolver("block-amg")), _poro(LinearSolver("superlu"))
 
 
-def test_coupled_blocks_equal_the_assembled_jacobian(poro_pair):
-    """With dilatancy (the p × u block gets a second contribution) and slipping faces: the blocks
-    the block solver receives are the assembled Jacobian's, entry for entry."""
-    Pb, Pa = poro_pair
-    assert Pb.blockwise and not Pa.blockwise and Pb.pattern is None
+def _dilatant_linearisations(Pb, Pa):
+    """Both models with ψ = 20° after one step of Pa; (state, x0 of Pa's and Pb's next step, x a
+    perturbed iterate, Pa's and Pb's linearisations at x)."""
     st = Pa.initial_state(1e5)
     for P in (Pa, Pb):
         P.tan_psi[:] = np.tan(np.radians(20.0))
@@ -105,9 +103,17 @@ def test_coupled_blocks_equal_the_assembled_jacobian(poro_pair):
     st, _ = Pa.step(st, 10.0)
     ca, x0 = Pa.step_context(st, 10.0, st.time + 10.0)
     cb, xb = Pb.step_context(st, 10.0, st.time + 10.0)
-    assert np.array_equal(x0, xb)
     x = x0 * (1 + 1e-3 * np.random.default_rng(0).standard_normal(x0.size))
-    la, lb = Pa._linearise(x, ca), Pb._linearise(x, cb)
+    return st, x0, xb, x, Pa._linearise(x, ca), Pb._linearise(x, cb)
+
+
+def test_coupled_blocks_equal_the_assembled_jacobian(poro_pair):
+    """With dilatancy (the p × u block gets a second contribution) and slipping faces: the blocks
+    the block solver receives are the assembled Jacobian's, entry for entry."""
+    Pb, Pa = poro_pair
+    assert Pb.blockwise and not Pa.blockwise and Pb.pattern is None
+    _, x0, xb, x, la, lb = _dilatant_linearisations(Pb, Pa)
+    assert np.array_equal(x0, xb)
     assert np.any(la.active_set == SLIP)
     assert np.array_equal(la.residual, lb.residual)
     assert isinstance(lb.jacobian, BlockJacobian)
@@ -123,15 +129,7 @@ def test_implicit_conductivity_blocks_equal_the_assembled_jacobian():
     """Conductivities at the iterate's aperture (a third p × u contribution and a flow block that
     changes per iterate): the blocks equal the assembled Jacobian's, to round-off."""
     Pb, Pa = (_poro(LinearSolver(k), conductivity_aperture="current") for k in ("block-amg", "superlu"))
-    st = Pa.initial_state(1e5)
-    for P in (Pa, Pb):
-        P.tan_psi[:] = np.tan(np.radians(20.0))
-        P.u_ref = st.u.copy()
-    st, _ = Pa.step(st, 10.0)
-    ca, x0 = Pa.step_context(st, 10.0, st.time + 10.0)
-    cb, _ = Pb.step_context(st, 10.0, st.time + 10.0)
-    x = x0 * (1 + 1e-3 * np.random.default_rng(0).standard_normal(x0.size))
-    la, lb = Pa._linearise(x, ca), Pb._linearise(x, cb)
+    st, _, _, x, la, lb = _dilatant_linearisations(Pb, Pa)
     assert np.any(la.active_set == SLIP)
     assert np.array_equal(la.residual, lb.residual)
     Ja, Jb = sp.csr_matrix(la.jacobian), lb.jacobian.tocsr()

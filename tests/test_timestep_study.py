@@ -9,8 +9,9 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def _module():
-    spec = importlib.util.spec_from_file_location("timestep_study", ROOT / "benchmarks" / "timestep_study.py")
+def _module(name: str = "timestep_study"):
+    """A benchmarks/ script imported as a module."""
+    spec = importlib.util.spec_from_file_location(name, ROOT / "benchmarks" / f"{name}.py")
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)
     return mod
@@ -34,13 +35,6 @@ def test_slipped_and_slip_state_areas_max_slip_and_pressures(tmp_path):
         _module().measures(tmp_path, np.array([5.0]) * 86400.0 - 86400.0, slipped_mm=0.1)
 
 
-def _bounds_module():
-    spec = importlib.util.spec_from_file_location("fault_bounds", ROOT / "benchmarks" / "fault_bounds.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def test_refinement_averages_the_fine_slip_onto_the_coarse_faces(tmp_path):
     """fault_bounds.py --refinement: each fine face goes to the nearest coarse face of its fault;
     the fine slip averaged by area there is compared with the coarse slip, and potencies."""
@@ -55,7 +49,7 @@ def test_refinement_averages_the_fine_slip_onto_the_coarse_faces(tmp_path):
 
     write(tmp_path / "c", [(0.0, 2.0, 1e-3), (1.0, 2.0, 3e-3)])
     write(tmp_path / "f", [(-0.25, 1.0, 0.0), (0.25, 1.0, 2e-3), (0.75, 0.5, 6e-3), (1.25, 1.5, 2e-3)])
-    r = _bounds_module().refinement(tmp_path / "c", tmp_path / "f")["F"]
+    r = _module("fault_bounds").refinement(tmp_path / "c", tmp_path / "f")["F"]
     assert r["time_s"] == [0.0, 86400.0]
     assert r["max_slip_coarse"][1] == 3e-3 and r["max_slip_fine"][1] == 6e-3
     # coarse face 0 gets (0 + 2e-3)/2 = 1e-3, face 1 (0.5·6e-3 + 1.5·2e-3)/2 = 3e-3

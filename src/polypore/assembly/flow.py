@@ -182,12 +182,16 @@ class FlowAssembler:
             else:
                 blk = b.T - tb[:, :, None] * tb[:, None, :] / denom[b.cells][:, None, None]
             vals.append(blk.ravel())
-        lam = np.repeat(exchange[:, None], 2, 1)                    # (n_ff, side)
-        ex = np.stack([np.stack([lam, -lam], 2), np.stack([-lam, lam], 2)], 2)   # (n_ff, side, 2, 2)
-        vals.append(ex.ravel())
+        vals += self._fracture_values(exchange, fcond, s_frac)
+        return np.concatenate(vals), denom
+
+    def _fracture_values(self, exchange, fcond, s_frac) -> list:
+        """Values of the exchange contributions ((n_ff, side, 2, 2) raveled) and of each fracture-HFV
+        block ((k, m + 1, m + 1): fracture cell first, then its edges), in contribution order."""
+        lam = np.repeat(np.asarray(exchange, float)[:, None], 2, 1)          # (n_ff, side)
+        vals = [np.stack([np.stack([lam, -lam], 2), np.stack([-lam, lam], 2)], 2).ravel()]
         for b in self.fhfv_unit.blocks:
-            c = fcond[b.cells]
-            T = b.T * c[:, None, None]
+            T = b.T * fcond[b.cells][:, None, None]
             tb = T.sum(2)
             m = tb.shape[1]
             blk = np.empty((len(b.cells), m + 1, m + 1))
@@ -196,7 +200,7 @@ class FlowAssembler:
             blk[:, 1:, 0] = -tb
             blk[:, 1:, 1:] = T
             vals.append(blk.ravel())
-        return np.concatenate(vals), denom
+        return vals
 
     # -- fracture coefficients ------------------------------------------------------------
     def fracture_contributions(self):
@@ -218,18 +222,10 @@ class FlowAssembler:
         r, c, _ = self._contributions(True)
         nh = sum(b.cells.size * (b.T.shape[1] + 1) ** 2 for b in self.hfv.blocks)
         nf = self.network.n_faces
+        one, zero = np.ones(nf), np.zeros(nf)
+        units = self._fracture_values(one, one, zero)            # every coefficient 1, no storage
         faces = [np.repeat(np.arange(nf, dtype=np.int64), 8)]
-        units = [np.tile(np.array([1.0, -1.0, -1.0, 1.0]), 2 * nf)]     # (side, row, col) as in _values
-        for b in self.fhfv_unit.blocks:
-            m = b.T.shape[1]
-            tb = b.T.sum(2)
-            blk = np.empty((len(b.cells), m + 1, m + 1))
-            blk[:, 0, 0] = tb.sum(1)
-            blk[:, 0, 1:] = -tb
-            blk[:, 1:, 0] = -tb
-            blk[:, 1:, 1:] = b.T
-            faces.append(np.repeat(b.cells.astype(np.int64), (m + 1) ** 2))
-            units.append(blk.ravel())
+        faces += [np.repeat(b.cells.astype(np.int64), (b.T.shape[1] + 1) ** 2) for b in self.fhfv_unit.blocks]
         face = np.concatenate(faces)
         conductive = np.ones(face.size, bool)
         conductive[:8 * nf] = False

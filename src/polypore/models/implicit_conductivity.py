@@ -96,9 +96,3 @@ class ImplicitConductivity:
         pair = np.bincount(self.pair, v, minlength=self.n_pairs)   # ∂(Δt A_f p)_r/∂d_σ per (r, σ)
         return -s[self.e_row] * pair[self.e_pair] * self.e_jval * grad[self.e_face, self.e_comp]
 
-
-def law_derivative(law, aperture: np.ndarray) -> np.ndarray:
-    """(n,) d law/d d_f at ``aperture`` (n,) by central differences of relative step H; ``law``
-    maps (n,) apertures to (n,) values (C_f/η or |σ| Λ_f/η)."""
-    h = H * aperture
-    return (law(aperture + h) - law(aperture - h)) / (2 * h)

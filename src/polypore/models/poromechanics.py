@@ -638,13 +638,21 @@ class Poromechanics:
 
     def aperture_of(self, u: np.ndarray) -> np.ndarray:
         """(n_ff,) d_f = d_f^c − [[u]]_n + tan ψ |[[u − u⁰]]_τ| (scheme.md §1, C6), m."""
+        return self._aperture_and_gradient(u)[0]
+
+    def _aperture_and_gradient(self, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(d_f (n_ff,) in m, ∂d_f/∂[[u]]_σ (n_ff, d) = −n + tan ψ ∂|[[u − u⁰]]_τ|_ε/∂[[u]])."""
+        n = self.mech.normal
         if not self.n_ff:
-            return np.zeros(0)
+            return np.zeros(0), np.zeros((0, self.dim))
         q = self.jumps(u)
-        d_f = self.closed_aperture - np.einsum("fi,fi->f", q, self.mech.normal)
+        d_f = self.closed_aperture - np.einsum("fi,fi->f", q, n)
+        grad = -n.copy()
         if np.any(self.tan_psi > 0):
-            d_f = d_f + self.tan_psi * self._tangential_slip(q)[0]
-        return d_f
+            rel, e = self._tangential_slip(q)
+            d_f = d_f + self.tan_psi * rel
+            grad += self.tan_psi[:, None] * e
+        return d_f, grad
 
     def initial_state(self, p0, u0=None, t0: float = 0.0, verbose: bool = False) -> PoroState:
         """State at t0 with every pressure from ``p0`` (number or f(x, y, z, t)).
@@ -826,16 +834,12 @@ class Poromechanics:
         dpp : change of the free–free flow entries of the scaled Jacobian (−dpp is added)
         """
         ex0, fc0, dt = old
-        d = self.dim
-        u = u.reshape(-1, d)
-        d_raw = self.aperture_of(u)
+        d_raw, grad = self._aperture_and_gradient(u.reshape(-1, self.dim))
         ap = np.maximum(d_raw, self.closed_aperture)
         ex, fc = self.conductivities(ap)
+        # central differences of the (possibly user-given) laws, relative step LAW_STEP
         hi, lo = self.conductivities(ap * (1 + LAW_STEP)), self.conductivities(ap * (1 - LAW_STEP))
         h2 = 2 * LAW_STEP * ap
-        grad = -self.mech.normal.copy()                          # ∂d_σ/∂[[u]]_σ
-        if np.any(self.tan_psi > 0):
-            grad += self.tan_psi[:, None] * self._tangential_slip(self.jumps(u))[1]
         grad[d_raw < self.closed_aperture] = 0.0
         imp = self._implicit
         dA = imp.matrix_change(ex0, fc0, ex, fc, dt, A_dt.data.size)

@@ -187,7 +187,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
         limit = schedule.max_conductivity_growth
 
         def accept(sub):
-            """None, or why a converged step is redone as two half steps (time.max_conductivity_growth)."""
+            """None, or why a converged step is redone at half the size (time.max_conductivity_growth)."""
             g = sub["info"].conductivity_growth
             return None if limit is None or g <= limit else f"a fracture conductivity grew {g:.2g}-fold, above {limit:g}"
 
@@ -217,7 +217,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                 row["energy"] = info.energy.summary()           # the last sub-step's; all are checked
                 energies.extend(i.energy for i in subs if i.energy is not None)
             steps.append(row)
-            lin = f", {len(lin_its) and sum(lin_its)} GMRES iterations" if lin_its else ""
+            lin = f", {sum(lin_its)} GMRES iterations" if lin_its else ""
             sub = f" in {len(subs)} sub-steps" if len(subs) > 1 else ""
             log.info("step %d/%d: t = %g s, %d Newton iterations%s (residual %.1e)%s, open %d, stick %d, slip %d, "
                      "%.2f s (%s)", rec.index, len(schedule.times()) - 1, rec.time, row["newton_iterations"], sub,

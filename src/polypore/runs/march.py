@@ -31,7 +31,7 @@ class StepRecord:
     progress: str = ""      # 'elapsed …, about … left' after this step
     substeps: list = field(default_factory=list)    # info of every accepted sub-step, in order
     rejected: int = 0                                # sub-steps solved and then rejected by ``accept``
-    forced: int = 0                                  # sub-steps ``accept`` rejected at the depth limit (kept)
+    forced: int = 0                                  # sub-steps ``accept`` rejected at the smallest size (kept)
 
 
 def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | None = None, label: str = "step",
@@ -58,7 +58,7 @@ def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | Non
             tic = _time.perf_counter()
             rec = StepRecord(k, t1, t1 - t0)
             if accept is None:
-                state = _advance(state, t0, t1, step, schedule.max_cuts, 0, 0, None, 0, rec)
+                state = _advance(state, t0, t1, step, schedule.max_cuts, 0, rec)
             else:
                 state = _adapted(state, t0, t1, step, schedule.max_cuts, accept, rec, h, float(schedule.step),
                                  max_rejections)
@@ -71,25 +71,19 @@ def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | Non
     return state, records
 
 
-def _advance(state, t0, t1, step, max_cuts, fails, rejects, accept, max_rejections, rec):
-    """State at t1 from t0, cutting failed and rejected steps; accepted infos go to ``rec``."""
-    rec.cuts = max(rec.cuts, fails + rejects)
+def _advance(state, t0, t1, step, max_cuts, depth, rec):
+    """State at t1 from t0, a failed step retried as two half steps; accepted infos go to ``rec``."""
+    rec.cuts = max(rec.cuts, depth)
     try:
         new, info = step(state, t0, t1)
     except RunError as exc:
-        if fails >= max_cuts:
-            raise RunError(f"the step from t = {t0:g} s to {t1:g} s failed after {fails + rejects} cut(s) of the "
-                           f"time step (smallest Δt {t1 - t0:g} s): {exc}") from None
+        if depth >= max_cuts:
+            raise RunError(f"the step from t = {t0:g} s to {t1:g} s failed after {depth} cut(s) of the time step "
+                           f"(smallest Δt {t1 - t0:g} s): {exc}") from None
         log.warning("step %g → %g s failed (%s); retrying as two half steps", t0, t1, str(exc).split(":")[0])
-        return _halves(state, t0, t1, step, max_cuts, fails + 1, rejects, accept, max_rejections, rec)
-    why = accept(info) if accept is not None else None
-    if why:
-        if rejects < max_rejections:
-            rec.rejected += 1
-            log.info("step %g → %g s rejected (%s); redoing it as two half steps", t0, t1, why)
-            return _halves(state, t0, t1, step, max_cuts, fails, rejects + 1, accept, max_rejections, rec)
-        rec.forced += 1
-        log.warning("step %g → %g s kept after %d halvings although %s", t0, t1, rejects, why)
+        tm = 0.5 * (t0 + t1)
+        mid = _advance(state, t0, tm, step, max_cuts, depth + 1, rec)
+        return _advance(mid, tm, t1, step, max_cuts, depth + 1, rec)
     rec.substeps.append(info)
     return new
 
@@ -130,8 +124,3 @@ def _adapted(state, t0, t1, step, max_cuts, accept, rec, h, dt, max_rejections):
         state, t, fails = new, t + size, 0
     return state
 
-
-def _halves(state, t0, t1, step, max_cuts, fails, rejects, accept, max_rejections, rec):
-    tm = 0.5 * (t0 + t1)
-    mid = _advance(state, t0, tm, step, max_cuts, fails, rejects, accept, max_rejections, rec)
-    return _advance(mid, tm, t1, step, max_cuts, fails, rejects, accept, max_rejections, rec)

@@ -9,7 +9,7 @@
     output_every = 1              # write outputs every n steps (and at the end), or
     output_times = [500, 2000]    # at these times (steps are shortened to land on them)
     max_cuts = 4                  # halvings of a step whose Newton loop fails before giving up
-    max_conductivity_growth = 1e3 # poromechanics: halve a step in which a C_f grows more (optional)
+    max_conductivity_growth = 1e3 # poromechanics: halve a (sub-)step in which a C_f grows more
     growth_cuts = 8               # its smallest sub-step: step / 2^growth_cuts
 """
 

@@ -81,7 +81,7 @@ class Time(Table):
     max_cuts: number(ge=0, le=30, integer=True) = Field(4, description="halvings of a step whose Newton loop "
                                                         "fails before the run stops")
     max_conductivity_growth: number(gt=1) | None = Field(
-        None, description="poromechanics: redo a step as two half steps while some fracture face's conductivity "
+        None, description="poromechanics: redo a step at half the size while some fracture face's conductivity "
         "grows more than this factor in it (a slip onset; the conductivities lag one step); default: no limit")
     growth_cuts: number(ge=0, le=30, integer=True) = Field(8, description="with max_conductivity_growth: the "
                                                            "smallest sub-step is time.step / 2^growth_cuts")
