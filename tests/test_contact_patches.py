@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from polypore.cli import main
-from polypore.discretisation.contact_patches import contact_patches, cross_section_ratio
+from polypore.discretisation.contact_patches import contact_patches, cross_section_ratio, side_cross_sections
 from polypore.mesh.cornerpoint import fractured_mesh, process_grid
 from polypore.mesh.cornerpoint.generate import FaultSpec, generate_grid
 from polypore.models.inf_sup import inf_sup_constant
@@ -133,3 +133,86 @@ def test_thickness_weight_is_the_diameter_on_regular_cells_and_softer_on_flat_on
     assert np.isclose(nodal_weight(flat, "thickness")[0], 4.0)          # 4 t_K, t_K = 400 / 400
     with pytest.raises(ValueError):
         nodal_weight(flat, "volume")
+
+
+def _thin_layer_fault_mesh(high_side: bool):
+    """4 × 2 × 4 cells of 100 m × 100 m × 25 m; on one side of the pillar line i = 2 layer 1 is
+    1 m thick (layer 2 takes the rest). The layers' mismatch makes a fault: its faces against
+    the thin cells are 1 m × 100 m, regular faces of the thin cell (|σ|/A_K = 1) and slivers of
+    the 25 m cell across (0.04). ``high_side``: the thin layer on the high-index (+) side."""
+    import dataclasses
+
+    grid = generate_grid(4, 2, 4, extent=(400.0, 200.0, 100.0), faults=[FaultSpec("i", 2, 0.0)], properties=False)
+    z = grid.zcorn.copy()
+    cols = slice(4, 8) if high_side else slice(0, 4)
+    z[cols, :, 3] = z[cols, :, 2] + 1.0
+    z[cols, :, 4] = z[cols, :, 3]
+    mesh, info = process_grid(dataclasses.replace(grid, zcorn=z), snap=0.0)
+    return fractured_mesh(mesh, info, sorted(info.faults))
+
+
+def _jump_per_traction(mech) -> np.ndarray:
+    """(n_ff,) tangential jump per unit tangential traction on the face alone (m/Pa): the
+    diagonal of B A⁻¹ Bᵀ over |σ| (B carries |σ|), along y."""
+    import scipy.sparse.linalg as spla
+
+    from polypore.models.inf_sup import local_rows
+
+    A = local_rows(mech.A).tocsc()[mech.free][:, mech.free]
+    B = mech.Bcv[:, mech.free].toarray()
+    S = B @ spla.splu(A).solve(B.T)
+    iy = np.arange(mech.fm.network.n_faces) * 3 + 1
+    return S[iy, iy] / mech.face_area
+
+
+def _sided(fm, side, patch_ratio=0.0, **kw):
+    n = fm.mesh.n_cells
+    zero = lambda X, t: np.zeros_like(X)  # noqa: E731
+    bcs = kw.pop("bcs", [DisplacementBC("bottom", (0, 1, 2), zero)]
+                 + [DisplacementBC(b, (0, 1), zero) for b in ("west", "east", "south", "north")])
+    data = MechanicsData(mu=np.full(n, 1e10), lam=np.full(n, 1e10), displacement=bcs, bubble_side=side,
+                         contact=ContactSpec("coulomb", 0.6, patch_ratio=patch_ratio), **kw)
+    return ContactMechanics(fm, data)
+
+
+def test_a_sliver_bubble_lives_in_the_cell_of_which_the_face_is_regular():
+    """mechanics.bubble_side = "regular" (default, discretisation/space.py bubble_sides): the
+    one-sided bubble of a face that is a sliver of the + cell but a regular face of the − cell
+    lives in the − cell. With the face-scaled weight |σ|²/|K| the bubble in the large cell made
+    the 100 m² face 23× more compliant per unit traction than the fault's 2,400 m² faces (the
+    runaway sliver of docs/fault_bounds.md); in the thin cell it is stiffer than they are, as a
+    smaller patch of a fault must be."""
+    from polypore.discretisation.space import bubble_sides
+
+    fm = _thin_layer_fault_mesh(high_side=True)
+    area = fm.mesh.geometry.face_area[fm.network.faces]
+    thin = np.isclose(area, 100.0)
+    full = area > 2000.0
+    assert thin.sum() == 2 and full.sum() >= 2
+    r = area / side_cross_sections(fm)
+    assert np.allclose(r[0, thin], 0.04) and np.allclose(r[1, thin], 1.0)     # a sliver of its + cell
+    assert np.array_equal(bubble_sides(fm) < 0, thin) and np.all(bubble_sides(fm, "plus") == 1)
+    plus, regular = (_jump_per_traction(_sided(fm, s)) for s in ("plus", "regular"))
+    assert plus[thin].min() > 10 * plus[full].max()                            # the defect, measured
+    assert regular[thin].max() < 0.2 * regular[full].min()
+    # where the thin cell is the + cell nothing moves
+    low = _thin_layer_fault_mesh(high_side=False)
+    assert np.all(bubble_sides(low) == 1)
+    # both sides keep the inf-sup constant of the face-scaled weight
+    assert inf_sup_constant(_sided(fm, "regular")) > 0.8 * inf_sup_constant(_sided(low, "regular"))
+
+
+def test_minus_side_bubbles_carry_a_uniform_stress_exactly():
+    # the compressed block of the patch test with bubbles in − cells: λ = −σ⁰ n⁺ on every face
+    fm = _thin_layer_fault_mesh(high_side=True)
+    zero = lambda X, t: np.zeros_like(X)  # noqa: E731
+    s = -5e6
+    s0 = lambda X, t: np.broadcast_to(np.diag([s, 0.7 * s, 0.9 * s]), (len(X), 3, 3))  # noqa: E731
+    bcs = [DisplacementBC(b, (0, 1, 2), zero) for b in ("west", "east", "south", "north", "bottom", "top")]
+    mech = _sided(fm, "regular", bcs=bcs, initial_stress=s0)
+    assert np.any(mech.space.bubble_sign < 0)
+    st = mech.solve(verbose=False)
+    n = fm.network.normal
+    expected = -np.einsum("ij,fj->fi", np.diag([s, 0.7 * s, 0.9 * s]), n)
+    np.testing.assert_allclose(st.lam, expected, rtol=0, atol=1e-8 * abs(s))
+    assert np.abs(st.u).max() < 1e-12

@@ -30,7 +30,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..core.ragged import frozen
 
-__all__ = ["ContactPatches", "contact_patches", "cross_section_ratio"]
+__all__ = ["ContactPatches", "contact_patches", "cross_section_ratio", "side_cross_sections"]
 
 # faces of one patch must not turn by more than this (cos of 60°): the patch's normal is their
 # mean, and a larger turn would mix normal and tangential jumps of the faces
@@ -96,23 +96,33 @@ def _extent_along(mesh, cells: np.ndarray, origin: np.ndarray, normal: np.ndarra
     return np.maximum.reduceat(proj, starts) - np.minimum.reduceat(proj, starts)
 
 
+def side_cross_sections(fm) -> np.ndarray:
+    """(2, n_ff) A_K = |K| / w_K of the + and − cells of every fracture face (m² in 3D), w_K the
+    cell's extent along the face normal: the cross-section of K normal to σ."""
+    net, g, mesh = fm.network, fm.mesh.geometry, fm.mesh
+    if net.n_faces == 0:
+        return np.zeros((2, 0))
+    xc, n = g.face_centroid[net.faces], net.normal
+    out = np.empty((2, net.n_faces))
+    for k, cells in enumerate((net.plus_cell, net.minus_cell)):
+        w = _extent_along(mesh, cells, xc, n)
+        out[k] = g.cell_volume[cells] / np.maximum(w, 1e-300)
+    return out
+
+
 def cross_section_ratio(fm) -> np.ndarray:
     """(n_ff,) |σ| / min(A_K⁺, A_K⁻) with A_K = |K| / w_K the cross-section of K normal to σ.
 
     1/3 or more on simplices, 1 for a face covering a hexahedron's side, ≪ 1 for slivers and
     thin strips (the factor of the face's inf-sup constant, module docstring). The smaller
     cell decides: a face that covers a fine cell's side where a coarse cell lies across the
-    fault (a reservoir layer against its cap rock) is a regular face of the fine cell."""
-    net, g, mesh = fm.network, fm.mesh.geometry, fm.mesh
+    fault (a reservoir layer against its cap rock) is a regular face of the fine cell, and its
+    bubble lives there (:meth:`~polypore.discretisation.DisplacementSpace.build`, side "regular")."""
+    net, g = fm.network, fm.mesh.geometry
     if net.n_faces == 0:
         return np.zeros(0)
     area = g.face_area[net.faces]
-    xc, n = g.face_centroid[net.faces], net.normal
-    ref = np.full(net.n_faces, np.inf)
-    for cells in (net.plus_cell, net.minus_cell):
-        w = _extent_along(mesh, cells, xc, n)
-        ref = np.minimum(ref, g.cell_volume[cells] / np.maximum(w, 1e-300))
-    return area / np.maximum(ref, 1e-300)
+    return area / np.maximum(side_cross_sections(fm).min(axis=0), 1e-300)
 
 
 def _face_links(fm) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -4,7 +4,8 @@ Scalar unknowns ("slots") are numbered sides first, then bubbles; a vector field
 a (n_slots, d) array and the global degree of freedom of slot a, component i is
 ``a * d + i``.
 
-* one-sided bubbles (default): one bubble per fracture face σ, held by K_σ^+;
+* one-sided bubbles (default): one bubble per fracture face σ, held by K_σ^+ (or, with side
+  "regular", by the cell of which σ is the more regular face: :func:`bubble_sides`);
 * two-sided bubbles (option): one per side of σ, held by K_σ^+ and K_σ^-.
 """
 
@@ -16,6 +17,7 @@ import numpy as np
 
 from ..core.ragged import INDEX, Ragged, frozen
 from ..mesh import FracturedMesh
+from .contact_patches import side_cross_sections
 
 
 class SlotCounts:
@@ -52,6 +54,29 @@ class SlotCounts:
         return slots[:, None] * d + np.arange(d)[None, :]
 
 
+# a one-sided bubble moves to the − cell only where that cell's cross-section normal to the face
+# is this many times smaller than the + cell's: faces regular on both sides keep the + side
+REGULAR_MARGIN = 2.0
+
+
+def bubble_sides(fm: FracturedMesh, side: str = "regular") -> np.ndarray:
+    """(n_ff,) +1 / −1: the side holding each fracture face's one-sided bubble.
+
+    "regular" puts it in the cell whose cross-section A_K normal to σ is the smaller (the cell
+    of which σ is the more regular face). Why: the bubble's stabilisation weight |σ|²/|K|
+    (:func:`~polypore.assembly.elasticity.elasticity_matrix`) is what resists the face's own slip
+    mode; in a cell that is large across the fault a sliver's bubble is |K|/|σ|² soft and slips
+    tens of times more than its neighbours (docs/fault_bounds.md, "The sliver"), while in the
+    cell of which it is a regular face it is as stiff as any regular face's."""
+    nff = fm.network.n_faces
+    if side == "plus":
+        return np.ones(nff, np.int8)
+    if side != "regular":
+        raise ValueError(f"side must be 'plus' or 'regular', got {side!r}")
+    a = side_cross_sections(fm)
+    return np.where(REGULAR_MARGIN * a[1] < a[0], -1, 1).astype(np.int8)
+
+
 @dataclass(frozen=True, eq=False)
 class DisplacementSpace(SlotCounts):
     """Slots of the nodal + bubble space and the local slot lists of every cell.
@@ -81,7 +106,17 @@ class DisplacementSpace(SlotCounts):
     cell_n_nodes: np.ndarray
 
     @classmethod
-    def build(cls, fm: FracturedMesh, two_sided: bool = False) -> "DisplacementSpace":
+    def build(cls, fm: FracturedMesh, two_sided: bool = False, side: str = "regular") -> "DisplacementSpace":
+        """The space of ``fm``.
+
+        Parameters
+        ----------
+        two_sided : one bubble on each side of every fracture face
+        side : for one-sided bubbles, "regular" (default): the cell in which σ is the more
+            regular face, the − cell where its cross-section normal to σ is less than
+            1/:data:`REGULAR_MARGIN` of the + cell's (:func:`bubble_sides`); or "plus", the scheme's
+            + side cell.
+        """
         net = fm.network
         nff = net.n_faces
         if two_sided:
@@ -89,7 +124,8 @@ class DisplacementSpace(SlotCounts):
             bcell = np.concatenate([net.plus_cell, net.minus_cell])
             bsign = np.concatenate([np.ones(nff), -np.ones(nff)])
         else:
-            bface, bcell, bsign = np.arange(nff), net.plus_cell, np.ones(nff)
+            bsign = bubble_sides(fm, side)
+            bface, bcell = np.arange(nff), np.where(bsign > 0, net.plus_cell, net.minus_cell)
         mesh = fm.mesh
         ns = fm.sides.n_sides
         nc = mesh.n_cells

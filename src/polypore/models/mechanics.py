@@ -88,6 +88,8 @@ class MechanicsData:
     contact : ContactSpec
     two_sided : bubbles on both sides of fracture faces (default: one-sided; order 2: the 3D face
         bubbles, 2D has none)
+    bubble_side : side of one-sided bubbles (order 1): "regular" (default: the cell of which the
+        face is the more regular face) or "plus" (the scheme's), :func:`~polypore.discretisation.space.bubble_sides`
     stabilisation : scale of the stabilisation S (1 in the scheme; unused by order 2)
     bubble_stabilisation : "face" ((2μ + λ_L) |σ|²/|K| per bubble, default) or "cell" (the
         scheme's h_K^{d−2} (2μ + λ_L)), :func:`~polypore.assembly.elasticity.elasticity_matrix`
@@ -108,6 +110,7 @@ class MechanicsData:
     initial_stress: TensorField | None = None
     contact: ContactSpec = field(default_factory=ContactSpec)
     two_sided: bool = False
+    bubble_side: str = "regular"
     stabilisation: float = 1.0
     order: int = 1
     bubble_stabilisation: str = "face"
@@ -125,6 +128,8 @@ class MechanicsData:
         if self.bubble_stabilisation not in ("face", "cell"):
             raise InputError("mechanics.bubble_stabilisation", f"must be 'face' or 'cell', got "
                              f"{self.bubble_stabilisation!r}")
+        if self.bubble_side not in ("plus", "regular"):
+            raise InputError("mechanics.bubble_side", f"must be 'plus' or 'regular', got {self.bubble_side!r}")
         if self.nodal_stabilisation not in ("diameter", "thickness"):
             raise InputError("mechanics.nodal_stabilisation", f"must be 'diameter' or 'thickness', got "
                              f"{self.nodal_stabilisation!r}")
@@ -254,7 +259,7 @@ class ContactMechanics:
             self.space = QuadraticSpace.build(fm, data.two_sided)
             self.ops = QuadraticOperators.build(self.space)
         else:
-            self.space = DisplacementSpace.build(fm, data.two_sided)
+            self.space = DisplacementSpace.build(fm, data.two_sided, data.bubble_side)
             self.ops = Operators.build(self.space)
         mu, lam = np.broadcast_to(data.mu, (mesh.n_cells,)), np.broadcast_to(data.lam, (mesh.n_cells,))
         self.mu, self.lam = mu, lam

@@ -262,7 +262,7 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
     data = MechanicsData(mu=mu, lam=lam, displacement=tuple(disp), traction=tuple(trac), body_force=body_f,
                          matrix_pressure=pm_f, biot=sec.biot, fracture_pressure=pf_f, initial_stress=s0_f,
                          contact=ContactSpec(c.law, friction, threshold, c.beta, c.initial, c.patch_ratio),
-                         two_sided=sec.bubbles == "two-sided", stabilisation=stab,
+                         two_sided=sec.bubbles == "two-sided", bubble_side=sec.bubble_side, stabilisation=stab,
                          bubble_stabilisation=sec.bubble_stabilisation,
                          nodal_stabilisation=nodal,
                          **({"order": order} if order != 1 else {}))
@@ -360,6 +360,9 @@ def discretisation_choices(spec, sec: Mechanics, order: int, why: str, dim: int)
     mesh, mesh_given = spec.mesh, spec.mesh.given()
     out = {"order": order, "order_source": why,
            "bubbles": sec.bubbles, "bubbles_source": "given" if "bubbles" in mech_given else "default"}
+    if order == 1 and sec.bubbles == "one-sided":
+        out |= {"bubble_side": sec.bubble_side,
+                "bubble_side_source": "given" if "bubble_side" in mech_given else "default"}
     if getattr(mesh, "generator", None) == "simplicial":
         out |= {"mirror": mesh.mirror, "mirror_source": "given" if "mirror" in mesh_given else "default"}
         if dim == 3:
@@ -370,6 +373,8 @@ def discretisation_choices(spec, sec: Mechanics, order: int, why: str, dim: int)
 def describe_choices(c: dict) -> str:
     """One line: "order 2 (auto: 3D mesh of tetrahedra with fractures), one-sided bubbles (default), ..."."""
     parts = [f"order {c['order']} ({c['order_source']})", f"{c['bubbles']} bubbles ({c['bubbles_source']})"]
+    if "bubble_side" in c:
+        parts.append(f"bubbles on the {c['bubble_side']} side ({c['bubble_side_source']})")
     if "nodal_stabilisation" in c:
         parts.append(f"{c['nodal_stabilisation']}-weighted nodal stabilisation ({c['nodal_stabilisation_source']})")
     if "stabilisation" in c:

@@ -199,6 +199,10 @@ class Mechanics(Table):
                             "with fractures, else 1 (docs/defaults.md)")
     bubbles: choice("one-sided", "two-sided") = Field("one-sided", description="face bubbles on one or both "
                                                        "sides of each fracture")
+    bubble_side: choice("regular", "plus") = Field(
+        "regular", description="cell holding a one-sided bubble (order 1): regular (the cell of which the face is "
+        "the more regular face: the − cell where its cross-section normal to the face is less than half the + "
+        "cell's; docs/contact_patches.md, \"The bubble's cell\") or plus (the fault's + side, the scheme's)")
     stabilisation: _stabilisation() = Field(
         "auto", description="scale of the stabilisation (× the scheme's weights), or auto: 0.3 on corner-point "
         "grids, 1 elsewhere (docs/contact_patches.md, \"The stabilisation's reaction\")")
