@@ -66,7 +66,7 @@ def bubble_sides(fm: FracturedMesh, side: str = "regular") -> np.ndarray:
     of which σ is the more regular face). Why: the bubble's stabilisation weight |σ|²/|K|
     (:func:`~polypore.assembly.elasticity.elasticity_matrix`) is what resists the face's own slip
     mode; in a cell that is large across the fault a sliver's bubble is |K|/|σ|² soft and slips
-    tens of times more than its neighbours (docs/fault_bounds.md, "The sliver"), while in the
+    tens of times more than its neighbours (docs/contact_patches.md, "The bubble's cell"), while in the
     cell of which it is a regular face it is as stiff as any regular face's."""
     nff = fm.network.n_faces
     if side == "plus":
