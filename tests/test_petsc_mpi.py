@@ -174,6 +174,15 @@ RUNS = {
                "solver.petsc.ksp_rtol=1e-12"],
     "dfm-3d fieldsplit": ["mesh.size=0.15", "time.end=4", "time.output_times=[4.0]", "solver.linear=block-petsc",
                           "solver.petsc.ksp_rtol=1e-12", "solver.petsc.pc_type=fieldsplit"],
+    # a generated corner-point grid (its grid travels with the broadcast mesh: "grdecl"
+    # permeabilities) with pillars at 60°, a pinch-out, two contact faults slipping, and two fault
+    # faces whose bubbles live in their − cells (mechanics.bubble_side = "regular"); direct solves
+    "cornerpoint-injection": ["mesh.cells=[12, 10, 6]", "mesh.faults.F1.index=6", "mesh.faults.F2.index=5",
+                              "mesh.faults.F2.stop=7", "flow.wells.I1.column=[4, 5]", "flow.wells.I1.layers=[2, 5]",
+                              "mesh.pillar_angle=60.0", "mesh.pinchout=[2, 4]",
+                              'fractures=[{name = "F1", friction = 0.443}, {name = "F2", friction = 0.865}]',
+                              "monitor.points={well = [-350.0, 450.0, -1600.0], fault = [-50.0, 450.0, -1600.0]}",
+                              "parameters.mass_rate=100", "time.end=172800"],
 }
 
 
@@ -237,3 +246,37 @@ def test_mpiexec_without_petsc_is_one_line_exit_2(tmp_path):
     lines = p.stderr.strip().splitlines()
     assert len(lines) == 1 and "polypore[mpi]" in lines[0] and "docs/parallel.md" in lines[0], p.stderr
     assert not (tmp_path / "out").exists()
+
+
+def test_an_error_on_one_rank_stops_every_rank(tmp_path):
+    """A user error raised on rank 1 only (here: forced in the flow set-up) must not leave rank 0
+    waiting in a collective: the rank prints it with its number and every rank is aborted, with
+    the error's exit status. The same error on every rank stays one line from rank 0, status 2."""
+    mpiexec = _mpiexec("pymetis")
+    code = textwrap.dedent("""
+        import sys
+        from mpi4py import MPI
+        import polypore.setup.flow as flow
+        from polypore.core.errors import InputError
+        real = flow.flow_setup
+        def flow_setup(case, fm):
+            if MPI.COMM_WORLD.rank in [int(r) for r in sys.argv[2].split(",")]:
+                raise InputError("flow.permeability", "forced on this rank")
+            return real(case, fm)
+        flow.flow_setup = flow_setup
+        import polypore.setup.poromechanics as pm
+        pm.flow_setup = flow_setup
+        from polypore.cli import main
+        sys.exit(main(["run", "cornerpoint-injection", "--set", "time.end=86400", "--out", sys.argv[1]]))
+    """)
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": os.pathsep.join(
+        [os.path.join(os.path.dirname(__file__), "..", "src"), os.environ.get("PYTHONPATH", "")])}
+    base = [mpiexec, "--allow-run-as-root", "--oversubscribe", "-n", "2", sys.executable, "-c", code]
+    p = subprocess.run(base + [str(tmp_path / "one"), "1"], capture_output=True, text=True, timeout=300, env=env)
+    assert p.returncode == 2, p.stderr[-2000:]
+    assert "flow.permeability: forced on this rank (rank 1 of 2" in p.stderr, p.stderr[-2000:]
+    assert not (tmp_path / "one").exists() or not (tmp_path / "one" / "summary.json").exists()
+    p = subprocess.run(base + [str(tmp_path / "all"), "0,1"], capture_output=True, text=True, timeout=300, env=env)
+    assert p.returncode == 2, p.stderr[-2000:]
+    errors = [ln for ln in p.stderr.splitlines() if ln.startswith("polypore:")]
+    assert errors == ["polypore: error: flow.permeability: forced on this rank"], p.stderr[-2000:]

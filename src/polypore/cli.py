@@ -328,6 +328,27 @@ def _abort_other_ranks() -> None:
     ctx.comm.Abort(1)
 
 
+def _stop_every_rank(message: str, status: int) -> None:
+    """Report an error that ends the run. Serially: print it. Distributed: every rank usually
+    raises the same one (the same checks on the same broadcast data) and rank 0 reports it; when
+    only some ranks raise it, the others would wait for them in a collective forever, so the
+    rank prints it with its number and aborts every rank (MPI_Abort with ``status``)."""
+    from .solvers.distributed import context
+
+    ctx = context()
+    if ctx is None or ctx.size == 1:
+        print(f"polypore: {message}", file=sys.stderr)
+        return
+    if ctx.errors_agree():
+        if ctx.root:
+            print(f"polypore: {message}", file=sys.stderr)
+        return
+    print(f"polypore: {message} (rank {ctx.rank} of {ctx.size}; the other ranks did not stop: aborting them)",
+          file=sys.stderr)
+    sys.stderr.flush()
+    ctx.comm.Abort(status)
+
+
 def _is_root() -> bool:
     from .solvers.distributed import context
 
@@ -502,12 +523,10 @@ def main(argv=None) -> int:
             sys.stdout.flush()   # a closed pipe raises here, inside the handlers below, not at exit
             return status
     except InputError as exc:
-        if _is_root():                  # distributed: every rank raises the same, rank 0 reports
-            print(f"polypore: error: {exc}", file=sys.stderr)
+        _stop_every_rank(f"error: {exc}", 2)
         return 2
     except PolyporeError as exc:
-        if _is_root():
-            print(f"polypore: run failed: {exc}", file=sys.stderr)
+        _stop_every_rank(f"run failed: {exc}", exc.exit_status)
         return exc.exit_status
     except BrokenPipeError:
         # stdout piped into a program that stopped reading (`| head -1`, `| grep -q`): not an error

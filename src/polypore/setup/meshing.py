@@ -183,11 +183,24 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
     ctx = context()
     with live.phase("meshing"):
         if ctx is not None and ctx.size > 1:
-            fm = ctx.bcast_call(_build_fractured_mesh, case)
+            # the corner-point grid a mesh came from is held beside it (keyed by the mesh object),
+            # so it travels with the mesh: without it the other ranks refused "grdecl" values and
+            # waited for rank 0 forever
+            fm, cp, refine = ctx.bcast_call(_with_side_tables, case)
+            if cp is not None:
+                _CORNERPOINT[fm.mesh] = cp
+            if refine is not None:
+                _REFINED[fm.mesh] = refine
         else:
             fm = _build_fractured_mesh(case)
     trim_heap()                 # the mesh generator's and the broadcast's temporaries (core/memory.py)
     return fm
+
+
+def _with_side_tables(case: CaseFile):
+    """(fm, cornerpoint_of(fm.mesh), its refinement or None): what rank 0 broadcasts."""
+    fm = _build_fractured_mesh(case)
+    return fm, _CORNERPOINT.get(fm.mesh), _REFINED.get(fm.mesh)
 
 
 def _build_fractured_mesh(case: CaseFile) -> FracturedMesh:

@@ -76,7 +76,24 @@ class Distributed:
         self.comm = MPI.COMM_WORLD
         self.rank = self.comm.Get_rank()
         self.size = self.comm.Get_size()
+        # a communicator of its own for agreeing on an error (errors_agree): a barrier there
+        # cannot be matched against a collective another rank is waiting in on COMM_WORLD
+        self.error_comm = self.comm.Dup()
         self._parts: dict = {}
+
+    def errors_agree(self, timeout: float = 10.0) -> bool:
+        """Called by a rank that stops on an error: True when every rank stops too (each calls
+        this within ``timeout`` seconds: the same user error raised everywhere), False when some
+        rank is still computing or waiting for this one (then only an abort ends the run)."""
+        import time
+
+        req = self.error_comm.Ibarrier()
+        end = time.monotonic() + timeout
+        while time.monotonic() < end:
+            if req.Test():
+                return True
+            time.sleep(0.01)
+        return False
 
     @property
     def root(self) -> bool:
