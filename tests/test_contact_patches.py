@@ -23,13 +23,16 @@ def _fault_mesh(throw, nx=4, ny=2, nz=4):
     return fractured_mesh(mesh, info, ["F"])
 
 
-def _mechanics(fm, ratio, bubbles="face"):
+def _mechanics(fm, ratio, bubbles="face", side="regular", **kw):
+    """Clamped sides and bottom (or ``bcs``), Coulomb contact with patch ratio ``ratio``, bubble
+    weight ``bubbles`` and side ``side``; further MechanicsData fields in ``kw``."""
     zero = lambda X, t: np.zeros_like(X)  # noqa: E731
-    bcs = [DisplacementBC("bottom", (0, 1, 2), zero)] + [DisplacementBC(b, (0, 1), zero)
-                                                         for b in ("west", "east", "south", "north")]
+    bcs = kw.pop("bcs", [DisplacementBC("bottom", (0, 1, 2), zero)]
+                 + [DisplacementBC(b, (0, 1), zero) for b in ("west", "east", "south", "north")])
     n = fm.mesh.n_cells
     data = MechanicsData(mu=np.full(n, 1e10), lam=np.full(n, 1e10), displacement=bcs,
-                         contact=ContactSpec("coulomb", 0.6, patch_ratio=ratio), bubble_stabilisation=bubbles)
+                         contact=ContactSpec("coulomb", 0.6, patch_ratio=ratio), bubble_stabilisation=bubbles,
+                         bubble_side=side, **kw)
     return ContactMechanics(fm, data)
 
 
@@ -165,16 +168,6 @@ def _jump_per_traction(mech) -> np.ndarray:
     return S[iy, iy] / mech.face_area
 
 
-def _sided(fm, side, patch_ratio=0.0, **kw):
-    n = fm.mesh.n_cells
-    zero = lambda X, t: np.zeros_like(X)  # noqa: E731
-    bcs = kw.pop("bcs", [DisplacementBC("bottom", (0, 1, 2), zero)]
-                 + [DisplacementBC(b, (0, 1), zero) for b in ("west", "east", "south", "north")])
-    data = MechanicsData(mu=np.full(n, 1e10), lam=np.full(n, 1e10), displacement=bcs, bubble_side=side,
-                         contact=ContactSpec("coulomb", 0.6, patch_ratio=patch_ratio), **kw)
-    return ContactMechanics(fm, data)
-
-
 def test_a_sliver_bubble_lives_in_the_cell_of_which_the_face_is_regular():
     """mechanics.bubble_side = "regular" (default, discretisation/space.py bubble_sides): the
     one-sided bubble of a face that is a sliver of the + cell but a regular face of the − cell
@@ -192,14 +185,14 @@ def test_a_sliver_bubble_lives_in_the_cell_of_which_the_face_is_regular():
     r = area / side_cross_sections(fm)
     assert np.allclose(r[0, thin], 0.04) and np.allclose(r[1, thin], 1.0)     # a sliver of its + cell
     assert np.array_equal(bubble_sides(fm) < 0, thin) and np.all(bubble_sides(fm, "plus") == 1)
-    plus, regular = (_jump_per_traction(_sided(fm, s)) for s in ("plus", "regular"))
+    plus, regular = (_jump_per_traction(_mechanics(fm, 0.0, side=s)) for s in ("plus", "regular"))
     assert plus[thin].min() > 10 * plus[full].max()                            # the defect, measured
     assert regular[thin].max() < 0.2 * regular[full].min()
     # where the thin cell is the + cell nothing moves
     low = _thin_layer_fault_mesh(high_side=False)
     assert np.all(bubble_sides(low) == 1)
     # both sides keep the inf-sup constant of the face-scaled weight
-    assert inf_sup_constant(_sided(fm, "regular")) > 0.8 * inf_sup_constant(_sided(low, "regular"))
+    assert inf_sup_constant(_mechanics(fm, 0.0)) > 0.8 * inf_sup_constant(_mechanics(low, 0.0))
 
 
 def test_minus_side_bubbles_carry_a_uniform_stress_exactly():
@@ -209,7 +202,7 @@ def test_minus_side_bubbles_carry_a_uniform_stress_exactly():
     s = -5e6
     s0 = lambda X, t: np.broadcast_to(np.diag([s, 0.7 * s, 0.9 * s]), (len(X), 3, 3))  # noqa: E731
     bcs = [DisplacementBC(b, (0, 1, 2), zero) for b in ("west", "east", "south", "north", "bottom", "top")]
-    mech = _sided(fm, "regular", bcs=bcs, initial_stress=s0)
+    mech = _mechanics(fm, 0.0, bcs=bcs, initial_stress=s0)
     assert np.any(mech.space.bubble_sign < 0)
     st = mech.solve(verbose=False)
     n = fm.network.normal

@@ -746,13 +746,10 @@ class ContactMechanics:
         from the point slots (nodes; with order 2 also edge points) and from the face bubbles, m.
         A jump carried by a bubble alone is a cell-local mode, not a displacement of the fault's
         sides (docs/fault_bounds.md, the sliver that runs away)."""
-        J = sp.csr_array(self.jump_scalar).tocoo()
-        bub = J.col >= self.space.n_point_slots
-        shape = J.shape
-        Jp = sp.csr_array((np.where(bub, 0.0, J.data), (J.row, J.col)), shape=shape)
-        Jb = sp.csr_array((np.where(bub, J.data, 0.0), (J.row, J.col)), shape=shape)
-        u = np.asarray(u, float).reshape(shape[1], -1)
-        return Jp @ u, Jb @ u
+        J = sp.csc_array(self.jump_scalar)
+        npt = self.space.n_point_slots                   # bubble slots come after the point slots
+        u = np.asarray(u, float).reshape(J.shape[1], -1)
+        return J[:, :npt] @ u[:npt], J[:, npt:] @ u[npt:]
 
     def gradients(self, st: MechanicsState) -> np.ndarray:
         """(n_cells, d, d) ∇^K u (order 2: the cell mean of ∇u)."""

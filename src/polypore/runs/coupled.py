@@ -27,7 +27,7 @@ from ..core import live
 from ..core.errors import InputError, RunError
 from ..io.atomic import atomic_write_text
 from ..io.legend import POROMECHANICS_ARRAYS, write_legend
-from ..io.monitor3d import StepRecorder, collect, from_run_directory
+from ..io.monitor3d import StepRecorder, collect, from_run_directory, tangential
 from ..io.plots import monitor_plots, poro_plots, time_unit
 from ..io.plots3d import write_3d_plots
 from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
@@ -69,8 +69,7 @@ def bubble_slip(model, st, net) -> dict:
     u0 = model.u_ref if model.u_ref is not None else np.zeros_like(st.u)
     pts, bub = mech.jump_parts(st.u - u0)
     n = mech.normal
-    tang = lambda q: np.linalg.norm(q - np.einsum("fi,fi->f", q, n)[:, None] * n, axis=1)  # noqa: E731
-    total, tb, tp = tang(pts + bub), tang(bub), tang(pts)
+    total, tb, tp = tangential(pts + bub, n), tangential(bub, n), tangential(pts, n)
     hit = (total > SLIPPED) & (tb >= BUBBLE_SHARE * total) & (tb >= BUBBLE_OVER_NODAL * tp)
     out = {"faces": int(hit.sum()), "share": BUBBLE_SHARE, "over_nodal": BUBBLE_OVER_NODAL, "slipped_m": SLIPPED,
            "largest": None}
@@ -111,8 +110,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
     n_hat = model.mech.normal
 
     def slip_since_start(st):
-        r = model.jumps(st.u) - q_start
-        return np.linalg.norm(r - np.einsum("fi,fi->f", r, n_hat)[:, None] * n_hat, axis=1)
+        return tangential(model.jumps(st.u) - q_start, n_hat)
 
     monitor = {"time": [], "points": {k: [] for k in points}, "fault_p": {k: [] for k in net.names},
                "fault_slip": {k: [] for k in net.names}}
