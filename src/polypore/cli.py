@@ -93,10 +93,22 @@ def _signals_raise():
                 previous[sig] = signal.signal(sig, _on_signal)
     except ValueError:  # not the main thread: signals cannot be handled here
         pass
+    hook = sys.unraisablehook
+
+    def lost_signal(unraisable):
+        # the handler's exception raised inside a __del__ or a weakref callback is dropped by
+        # CPython with an "Exception ignored in …" traceback; the signal is remembered and the
+        # run stops anyway (_output raises it again), so the user gets the one-line message only
+        if previous and isinstance(unraisable.exc_value, (KeyboardInterrupt, Terminated)) and _SIGNALLED:
+            return
+        hook(unraisable)
+
+    sys.unraisablehook = lost_signal
     try:
         with _acknowledge(set(previous)):
             yield
     finally:
+        sys.unraisablehook = hook
         for sig, handler in previous.items():
             signal.signal(sig, handler)
 
