@@ -76,6 +76,36 @@ from .mechanics import ContactMechanics, MechanicsData, jacobian_pattern
 
 log = logging.getLogger("polypore")
 
+# the smallest scale of a kind of flow equation, per row, as a fraction of the cell balances'
+# (all flow rows are volumes, m³): floored_kind_scales
+KIND_FLOOR = 1e-4
+
+
+def floored_kind_scales(den: np.ndarray, count: np.ndarray) -> np.ndarray:
+    """Each flow kind's Σ T_i² (the "Residual scaling" denominators), floored at
+    ``KIND_FLOOR``² × the cell balances' mean T_i² per row × the kind's row count.
+
+    A kind without terms (the face, trace and fracture rows of a state at rest, whose unknowns are
+    changes from the in-situ state, before anything flows) had its scale floored only at 1e-8 of
+    the largest row scale of the whole system (``row_weights``): in the first Newton system of an
+    injection its rows then weighed 1e8 times the cells' and the row-weighted GMRES stalled at a
+    relative residual of 1 for the first 10–15 iterations, a stall that grew with the grid. Once
+    anything flows the kinds' scales per row are 0.4 (faces), 10³–10⁴ (traces, fracture cells)
+    and 2·10⁻⁴ … 10³ (fracture edges) of the cells' (weak-scaling grids), all above the floor:
+    it only speaks where a kind has no terms of its own.
+
+    Parameters
+    ----------
+    den : (5,) Σ T_i² per kind (cells first);  count : (5,) rows per kind
+
+    Returns
+    -------
+    (5,) array
+    """
+    if count[0] == 0:
+        return den
+    return np.maximum(den, KIND_FLOOR ** 2 * den[0] / count[0] * count)
+
 APERTURES = ("previous", "current")   # flow.conductivity_aperture: d_f^{n−1} (scheme.md §6) or d_f^n
 STABILISATION = 0.25   # default δ of the pressure-jump stabilisation (docs/poromechanics.md, docs/choices.md)
 
@@ -804,6 +834,7 @@ class Poromechanics:
         kind = self._flow_kind
         num = np.bincount(kind, Rf[ff] ** 2, minlength=5)
         den = np.bincount(kind, terms[ff] ** 2, minlength=5)
+        den = floored_kind_scales(den, np.bincount(kind, minlength=5))
         flow = float(np.sqrt(np.max(num / np.maximum(den, 1e-300)))) if ff.size else 0.0
         norms = {"equilibrium": float(np.linalg.norm(Ru[free]) / su), "flow": flow}
         if nf:
@@ -929,14 +960,19 @@ class Poromechanics:
                     out = max(out, np.linalg.norm(dx[a:b]) / max(np.linalg.norm(x[a:b] + dx[a:b]), 1e-300))
             return float(out)
 
-        # an exact first solve only when this step is expected to be linear: the first step, or one
-        # after a step that converged in one iteration (its active set had settled); after a step
-        # whose active set moved it is as loose as the others (solvers/newton.py, forcing terms)
+        # an exact first solve only when this step is expected to be linear: one after a step that
+        # converged in one iteration (its active set had settled); after a step whose active set
+        # moved it is as loose as the others (solvers/newton.py, forcing terms). Not the run's first
+        # step: nothing says its active set stays, and from a state at rest its weighted norm is made
+        # of the source terms alone (the step's fluxes are not terms yet), so "exact" there asked
+        # ~100× more than the next iterate's norm needs (the weak-scaling grids' day 1: 39 + 14 + 15
+        # GMRES iterations at 3·10⁴ cells, 9 + 25 + 10 with a loose first solve, the same 3 Newton
+        # iterations; docs/iterative_cornerpoint.md, eighth session)
         # after a step that left every face's state as it found it: a direct solve needs two
         # iterations there (the second confirms), so "converged in one" never held and every step
         # of a run on stuck faults took a loose first solve and a third iteration (emerald-injection
         # with block-direct: 23 Newton iterations against PARDISO's 16)
-        first_tight = self._last_newton is None or self._last_newton <= 1 or self._last_settled
+        first_tight = self._last_newton is not None and (self._last_newton <= 1 or self._last_settled)
         res = semismooth_newton(lambda x: self._linearise(x, ctx), x0, self.solver, incr, self.newton, verbose,
                                 first_tight=first_tight)
         self._last_newton = res.iterations

@@ -26,10 +26,11 @@ block_contact.attainable_rtol), and only iterations that change the active set a
 loosely. A tight solve at an iterate that already meets the test (θ tol/‖F_k‖ > ``forcing_max``:
 the confirming step that a residual which is not piecewise linear, e.g. with dilatancy, needs) is
 asked for θ tol/‖F_k‖ itself, up to ``forcing_confirm``. A first iteration that is not tight gets
-``forcing_max``: the poromechanics time loop passes ``first_tight`` for its first step and
-after a step that converged in one iteration, because an exact first solve is wasted when the
-active set then moves (C5 at 46k cells: 56 of a step's ~140 GMRES iterations in the first half of
-the run).
+``forcing_max``: the poromechanics time loop passes ``first_tight`` only after a step that
+converged in one iteration (or left every state as it found it), because an exact first solve is
+wasted when the active set then moves (C5 at 46k cells: 56 of a step's ~140 GMRES iterations in
+the first half of the run), and not for a run's first step, whose norm from a state at rest holds
+the sources alone (models/poromechanics.py).
 """
 
 from __future__ import annotations
