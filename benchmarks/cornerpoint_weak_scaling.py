@@ -1,7 +1,7 @@
 """Weak scaling of the coupled solve on generated faulted corner-point models (issue 26).
 
     .venv-fast/bin/python benchmarks/cornerpoint_weak_scaling.py [--cells 1e4 3e4 1e5 ...] [--steps 3]
-        [--linear auto] [--json out.json] [--md out.md]
+        [--linear auto] [--json out.json] [--md out.md] [--set KEY=VALUE ...]
 
 Each size is ``cornerpoint-injection`` on a grid of about the given number of cells over the same
 2000 m × 1000 m × 160 m stack (nx : ny : nz = 40 : 25 : 10, scaled), with what makes corner-point
@@ -52,9 +52,9 @@ def overrides(nx: int, ny: int, nz: int, steps: int, linear: str) -> list[str]:
     return out
 
 
-def one(cells: float, steps: int, linear: str) -> dict:
+def one(cells: float, steps: int, linear: str, extra=()) -> dict:
     nx, ny, nz = grid_for(cells)
-    with polypore_run("cornerpoint-injection", overrides(nx, ny, nz, steps, linear)) as run:
+    with polypore_run("cornerpoint-injection", overrides(nx, ny, nz, steps, linear) + list(extra)) as run:
         if run.proc.returncode != 0:
             tail = (run.proc.stderr or run.proc.stdout).strip().splitlines()[-3:]
             return {"grid": [nx, ny, nz], "failed": " | ".join(tail)}
@@ -106,10 +106,13 @@ def main(argv=None) -> int:
     ap.add_argument("--linear", default="auto")
     ap.add_argument("--json", default=None)
     ap.add_argument("--md", default=None)
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="further case overrides, e.g. mechanics.bubble_side=plus")
     a = ap.parse_args(argv)
     rows = []
     for c in a.cells:
-        r = one(c, a.steps, a.linear)
+        r = one(c, a.steps, a.linear, a.set)
+        r["overrides"] = a.set
         rows.append(r)
         print(table([r]).splitlines()[-1], flush=True)
         if a.json:

@@ -249,3 +249,40 @@ def test_attainable_rtol_bounds_a_direct_solve_and_does_not_depend_on_chunks(mon
     assert 0.0 < res <= est <= 1e3 * res, (res, est)      # a bound, and not a vacuous one
     monkeypatch.setattr(block_jacobian, "_ABS_CHUNK", 7)
     assert block_contact.attainable_rtol(J, x, w, bn) == pytest.approx(est, rel=1e-14)
+
+
+def test_flow_kinds_without_terms_are_not_weighted_beyond_the_floor():
+    """From a state at rest (unknowns are changes from the in-situ state, nothing flows yet) the
+    face, trace and fracture rows of the first injection system have no terms: their Newton row
+    weights stay within 1/KIND_FLOOR of the cell rows' (they were 10⁸ times larger), and a kind
+    with terms of its own keeps them (floored_kind_scales)."""
+    from polypore.models.poromechanics import KIND_FLOOR, floored_kind_scales
+    from polypore.setup.casefile import load_case
+    from polypore.setup.meshing import build_fractured_mesh
+    from polypore.setup.poromechanics import poro_setup
+
+    den = np.array([4.0, 0.0, 1e-3, 9.0, 0.0])
+    count = np.array([4, 2, 1, 3, 0])
+    out = floored_kind_scales(den, count)
+    assert out[0] == 4.0 and out[3] == 9.0 and out[4] == 0.0
+    assert out[1] == pytest.approx(KIND_FLOOR ** 2 * 1.0 * 2) and out[2] == 1e-3
+    assert np.array_equal(floored_kind_scales(den, np.array([0, 2, 1, 3, 0])), den)
+
+    case = load_case("cornerpoint-injection", ["time.step=86400", "time.end=86400"])
+    model, fs, _ = poro_setup(case, build_fractured_mesh(case))
+    st = (model.initial_state(fs.initial_pressure) if model.reference is None
+          else model.reference_state(fs.initial_pressure))
+    ctx, x0 = model.step_context(st, 86400.0, 86400.0)
+    lin = model._linearise(x0, ctx)
+    po = model.mech.free.size + model.mech.n_c * model.dim
+    kind = model._flow_kind
+    # the weight of a flow row is 1/(s_i √Σ_k): recover each kind's √Σ_k from it
+    root = 1.0 / (lin.row_scale[po:] * ctx[7][model.flow_free])
+    assert np.any(lin.residual[po:][kind == 0] != 0)                # the well's source
+    n0 = np.count_nonzero(kind == 0)
+    cell_root = np.median(root[kind == 0])
+    for k in (1, 2, 3, 4):
+        nk = np.count_nonzero(kind == k)
+        if nk:
+            # rest: no terms of its own, so exactly the floor (was 1e-8 of the system's largest scale)
+            assert root[kind == k].min() == pytest.approx(KIND_FLOOR * cell_root * np.sqrt(nk / n0), rel=1e-9), k
