@@ -363,8 +363,10 @@ import os, signal, sys
 from polypore import cli
 class Late:
     def __del__(self):
-        os.kill(os.getpid(), signal.SIGINT)     # the handler runs inside __del__
-        sum(range(1000))                         # bytecode: the handler runs here
+        os.kill(os.getpid(), signal.SIGINT)     # the handler runs inside __del__:
+        for _ in range(10 ** 8):                 # bytecode until it has (one C call was not
+            if cli._SIGNALLED:                   # always enough on a loaded machine)
+                break
 class Broken:
     def __del__(self):
         raise ValueError("a real bug")
