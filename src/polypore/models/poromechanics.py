@@ -526,6 +526,7 @@ class Poromechanics:
         kind[d.frac] = 3
         kind[d.edge] = 4
         self._flow_kind = kind[self.flow_free]
+        self._kind_count = np.bincount(self._flow_kind, minlength=5)     # rows per kind (fixed)
 
     def block_counts(self) -> dict:
         """Unknowns per block (summary.json ``mesh.blocks``): free displacement dofs at points
@@ -534,7 +535,7 @@ class Poromechanics:
         faces, fracture edges), plus the total per cell."""
         mech, d = self.mech, self.dim
         npt = mech.space.n_point_slots * d
-        k = np.bincount(self._flow_kind, minlength=5)
+        k = self._kind_count
         out = {"displacement_points": int(np.count_nonzero(mech.free < npt)),
                "displacement_bubbles": int(np.count_nonzero(mech.free >= npt)),
                "multipliers": int(mech.n_c * d),
@@ -834,7 +835,7 @@ class Poromechanics:
         kind = self._flow_kind
         num = np.bincount(kind, Rf[ff] ** 2, minlength=5)
         den = np.bincount(kind, terms[ff] ** 2, minlength=5)
-        den = floored_kind_scales(den, np.bincount(kind, minlength=5))
+        den = floored_kind_scales(den, self._kind_count)
         flow = float(np.sqrt(np.max(num / np.maximum(den, 1e-300)))) if ff.size else 0.0
         norms = {"equilibrium": float(np.linalg.norm(Ru[free]) / su), "flow": flow}
         if nf:
@@ -960,18 +961,15 @@ class Poromechanics:
                     out = max(out, np.linalg.norm(dx[a:b]) / max(np.linalg.norm(x[a:b] + dx[a:b]), 1e-300))
             return float(out)
 
-        # an exact first solve only when this step is expected to be linear: one after a step that
-        # converged in one iteration (its active set had settled); after a step whose active set
-        # moved it is as loose as the others (solvers/newton.py, forcing terms). Not the run's first
-        # step: nothing says its active set stays, and from a state at rest its weighted norm is made
-        # of the source terms alone (the step's fluxes are not terms yet), so "exact" there asked
-        # ~100× more than the next iterate's norm needs (the weak-scaling grids' day 1: 39 + 14 + 15
-        # GMRES iterations at 3·10⁴ cells, 9 + 25 + 10 with a loose first solve, the same 3 Newton
-        # iterations; docs/iterative_cornerpoint.md, eighth session)
-        # after a step that left every face's state as it found it: a direct solve needs two
-        # iterations there (the second confirms), so "converged in one" never held and every step
-        # of a run on stuck faults took a loose first solve and a third iteration (emerald-injection
-        # with block-direct: 23 Newton iterations against PARDISO's 16)
+        # an exact first solve only when this step is expected to be linear (solvers/newton.py,
+        # forcing terms): after a step that converged in one iteration, or that left every face's
+        # state as it found it (a direct solve needs two iterations there, the second confirming:
+        # without this rule emerald-injection with block-direct took 23 Newton iterations against
+        # PARDISO's 16). After a step whose active set moved it is loose, and so is the run's first
+        # step: nothing says its active set stays, and from a state at rest its weighted norm holds
+        # the source terms alone (the fluxes are not terms yet), so "exact" there asked ~100× more
+        # than the next iterate's norm needs (weak-scaling day 1 at 3·10⁴ cells: 39 + 14 + 15 GMRES
+        # iterations, 9 + 25 + 10 loose, both 3 Newton iterations; docs/iterative_cornerpoint.md)
         first_tight = self._last_newton is not None and (self._last_newton <= 1 or self._last_settled)
         res = semismooth_newton(lambda x: self._linearise(x, ctx), x0, self.solver, incr, self.newton, verbose,
                                 first_tight=first_tight)
