@@ -361,6 +361,9 @@ def test_a_signal_lost_in_a_weakref_callback_prints_no_traceback():
     code = """
 import os, signal, sys
 from polypore import cli
+# a test runner started in the background inherits SIGINT ignored, and _signals_raise keeps a
+# caller's choice: start from the default disposition
+signal.signal(signal.SIGINT, signal.default_int_handler)
 class Late:
     def __del__(self):
         os.kill(os.getpid(), signal.SIGINT)     # the handler runs inside __del__:
@@ -373,7 +376,7 @@ class Broken:
 with cli._signals_raise():
     Late()
     Broken()
-    assert cli._SIGNALLED == [signal.SIGINT]
+    assert cli._SIGNALLED == [signal.SIGINT], cli._SIGNALLED
 print("done")
 """
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
