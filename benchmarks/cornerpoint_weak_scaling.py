@@ -62,6 +62,10 @@ def one(cells: float, steps: int, linear: str, extra=()) -> dict:
     tot, mesh = s["totals"], s["mesh"]
     newton = sum(st["newton_iterations"] for st in s["steps"])
     krylov = sum(sum(st.get("linear_iterations") or []) for st in s["steps"])
+    # attempts given up and cut (summary.json steps[].failed_attempts): their work is part of the cost
+    failed = [f for st in s["steps"] for f in st.get("failed_attempts", [])]
+    newton_failed = sum(f.get("newton_iterations", 0) for f in failed)
+    krylov_failed = sum(sum(f.get("linear_iterations", [])) for f in failed)
     # each step's first solve is the tight one (forcing 1e-9 or the round-off floor) and the hard
     # one; the later ones are loose: their means apart say which kind grows with the grid
     per_step = [list(st.get("linear_iterations") or []) for st in s["steps"]]
@@ -71,9 +75,10 @@ def one(cells: float, steps: int, linear: str, extra=()) -> dict:
     return {"grid": [nx, ny, nz], "cells": mesh["cells"], "unknowns": mesh["unknowns"],
             "linear_solver": tot.get("linear_solver"), "steps": len(s["steps"]), "newton": newton,
             "krylov": krylov, "krylov_per_newton": krylov / max(newton, 1), "krylov_per_step": per_step,
+            "failed_attempts": len(failed), "newton_failed": newton_failed, "krylov_failed": krylov_failed,
             "krylov_first_mean": float(np.mean(first)) if first else None,
             "krylov_later_mean": float(np.mean(later)) if later else None, "wall_s": run.seconds,
-            "cpu_s": cpu, "cpu_s_per_unknown_newton": cpu / max(newton, 1) / mesh["unknowns"],
+            "cpu_s": cpu, "cpu_s_per_unknown_newton": cpu / max(newton + newton_failed, 1) / mesh["unknowns"],
             "peak_mb": tot.get("peak_memory_mb"), "kb_per_cell": 1024 * tot.get("peak_memory_mb", 0) / mesh["cells"],
             "slip_faces_end": s["steps"][-1]["slip"], "load_average": list(run.load_average)}
 
@@ -83,7 +88,7 @@ def _mean(v) -> str:
 
 
 def table(rows: list[dict]) -> str:
-    head = ("| grid | cells | unknowns | solver | Newton | Krylov / Newton | Krylov: first / later solves | "
+    head = ("| grid | cells | unknowns | solver | Newton (+ failed) | Krylov / Newton | Krylov: first / later solves | "
             "wall (s) | CPU (s) | CPU µs / unknown / Newton | peak (MB) | kB / cell | load |\n|" + "---|" * 13 + "\n")
     body = ""
     for r in rows:
@@ -91,7 +96,8 @@ def table(rows: list[dict]) -> str:
         if "failed" in r:
             body += f"| {g} | failed: {r['failed']} |" + " |" * 11 + "\n"
             continue
-        body += (f"| {g} | {r['cells']:,} | {r['unknowns']:,} | {r['linear_solver']} | {r['newton']} | "
+        body += (f"| {g} | {r['cells']:,} | {r['unknowns']:,} | {r['linear_solver']} | {r['newton']}"
+                 f"{' (+' + str(r['newton_failed']) + ')' if r.get('newton_failed') else ''} | "
                  f"{r['krylov_per_newton']:.1f} | {_mean(r.get('krylov_first_mean'))} / {_mean(r.get('krylov_later_mean'))} | "
                  f"{r['wall_s']:.0f} | {r['cpu_s']:.0f} | "
                  f"{1e6 * r['cpu_s_per_unknown_newton']:.2f} | {r['peak_mb']:.0f} | {r['kb_per_cell']:.0f} | "

@@ -280,7 +280,8 @@ def cmd_run(args) -> int:
     if "newton_iterations" in st:
         # the total is the cost of the run; the residual and contact states are the final ones
         n = sum(s["newton_iterations"] for s in steps)
-        parts.append(f"{n} Newton iteration{'' if n == 1 else 's'}")
+        nf = summary.get("totals", {}).get("newton_iterations_failed", 0)
+        parts.append(f"{n} Newton iteration{'' if n == 1 else 's'}" + (f" (+{nf} in failed attempts)" if nf else ""))
         parts.append(f"{'at the end ' if len(steps) > 1 else ''}residual {st['residual']:.2e}, "
                      f"faces open {st['open']}, stick {st['stick']}, slip {st['slip']}")
     parts.append(f"{summary['totals']['seconds']:.1f} s, peak {summary['totals']['peak_memory_mb']:.0f} MB"

@@ -66,7 +66,7 @@ from ..mesh import FracturedMesh
 from ..solvers.block_jacobian import BlockJacobian
 from ..solvers.distributed import OwnedRows, RowBlock, local_rows, owned_layout, register_layout
 from ..solvers.linear import LinearSolver, release_solver
-from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
+from ..solvers.newton import PREDICTORS, Linearisation, NewtonOptions, row_weights, semismooth_newton
 from ..solvers.petsc import shared
 from .contact import OPEN, SLIP, linearise_contact
 from .energy import step_energy
@@ -107,6 +107,8 @@ def floored_kind_scales(den: np.ndarray, count: np.ndarray) -> np.ndarray:
     return np.maximum(den, KIND_FLOOR ** 2 * den[0] / count[0] * count)
 
 APERTURES = ("previous", "current")   # flow.conductivity_aperture: d_f^{n−1} (scheme.md §6) or d_f^n
+# largest Δt/Δt_prev the predictor extrapolates over (the time loops double a sub-step at most)
+PREDICTOR_REACH = 2.0
 STABILISATION = 0.25   # default δ of the pressure-jump stabilisation (docs/poromechanics.md, docs/choices.md)
 
 
@@ -194,6 +196,10 @@ class Poromechanics:
         the aperture of C_f and Λ_f in a step: d_f^{n−1} (scheme.md §6, the default) or the
         step's own d_f^n, linearised in Newton (:mod:`.implicit_conductivity`; one process only;
         not a case-file key yet: at a dilatant slip onset its Newton cycles, docs/fault_bounds.md).
+    predictor : "linear" or "none"
+        first Newton iterate of a step: the previous step's increment (u, λ, p) extrapolated to this
+        Δt, kept only where its residual is below that of the old state (:meth:`step`), or the old
+        state itself.
     """
 
     def __init__(self, fm: FracturedMesh, mech_data: MechanicsData, flow_data: FlowData,
@@ -201,8 +207,11 @@ class Poromechanics:
                  cell_source=0.0, fracture_source=0.0, alpha=None, fracture_alpha=None,
                  solver: LinearSolver | None = None, newton: NewtonOptions | None = None,
                  initial_traction=None, dilatancy=0.0, pressure_stabilisation: float = STABILISATION,
-                 conductivity_aperture: str = "previous"):
+                 conductivity_aperture: str = "previous", predictor: str = "linear"):
         t0 = time.perf_counter()
+        if predictor not in PREDICTORS:
+            raise InputError("solver.predictor", f"must be one of {', '.join(PREDICTORS)}, got {predictor!r}")
+        self.predictor = predictor
         if conductivity_aperture not in APERTURES:
             raise InputError("conductivity_aperture", f"must be one of {', '.join(APERTURES)}, got "
                              f"{conductivity_aperture!r}")
@@ -247,6 +256,10 @@ class Poromechanics:
         self._coupling_sign = 1.0   # −1 only in tests: a deliberately wrong Biot sign the energy check must catch
         self._last_newton: int | None = None    # Newton iterations of the last step (the first solve's forcing)
         self._last_settled = False              # the last step left every face state as it found it
+        # (end state, Δu, Δλ per patch, Δp, Δt) of the last two converged steps: the predictor's
+        # increments, found by the identity of the state a step starts from (a step redone from an
+        # earlier state, after a rejection, finds its own)
+        self._increments: list[tuple] = []
         self._setup_coupling()
         self._setup_stabilisation(pressure_stabilisation)
         self._setup_flow_dofs()
@@ -936,6 +949,32 @@ class Poromechanics:
                              old.p[self.flow_free] / sf])
         return ctx, x0
 
+    def _predicted_start(self, old: PoroState, dt: float, ctx) -> np.ndarray | None:
+        """The first iterate x of a step from ``old`` extrapolated from the step that ended there:
+        (u, λ, p) + Δt/Δt_prev · (Δu, Δλ, Δp), or None (no such step, or ``predictor = "none"``).
+
+        Why: a step's loads (injection, pressure diffusion) change smoothly in time, and the faces
+        that slipped in the last step slip on; from the old state itself every such face starts at
+        zero slip on its friction cone, where the semi-smooth Newton flips it between stick and
+        slip (docs/iterative_cornerpoint.md, "The predictor"). Newton keeps x0 where this
+        iterate's residual is larger (a change of schedule the extrapolation cannot know).
+        """
+        hit = [inc for inc in self._increments if inc[0] is old]
+        if self.predictor == "none" or not hit:
+            return None
+        _, du, dlam, dp, dt_prev = hit[-1]
+        r = dt / dt_prev
+        if r > PREDICTOR_REACH:
+            # a short step followed by a long one: the short one's increment is typically a load's
+            # instant (undrained) response, not a rate (Terzaghi: Δt = 1e-6 T_c, then 1e-2 T_c)
+            return None
+        mech, s = self.mech, ctx[7]
+        u = old.u.ravel() + r * du
+        lam = mech.patch_values(old.lam) + r * dlam
+        p = old.p + r * dp
+        return np.concatenate([u[mech.free], (lam / mech.law.beta[:, None]).ravel(),
+                               p[self.flow_free] / s[self.flow_free]])
+
     def step(self, old: PoroState, dt: float, t_new: float | None = None, *, energy: bool = True,
              verbose: bool = False) -> tuple[PoroState, StepInfo]:
         """One implicit-Euler step from ``old`` to t_new (default old.time + dt), scheme.md §6.
@@ -971,10 +1010,18 @@ class Poromechanics:
         # than the next iterate's norm needs (weak-scaling day 1 at 3·10⁴ cells: 39 + 14 + 15 GMRES
         # iterations, 9 + 25 + 10 loose, both 3 Newton iterations; docs/iterative_cornerpoint.md)
         first_tight = self._last_newton is not None and (self._last_newton <= 1 or self._last_settled)
-        res = semismooth_newton(lambda x: self._linearise(x, ctx), x0, self.solver, incr, self.newton, verbose,
-                                first_tight=first_tight)
+        try:
+            res = semismooth_newton(lambda x: self._linearise(x, ctx), x0, self.solver, incr, self.newton, verbose,
+                                    first_tight=first_tight, x_pred=self._predicted_start(old, dt, ctx))
+        except RunError as exc:
+            # the failed attempt's Krylov work, for the run's report (runs/march.py)
+            exc.linear_iterations = [int(k) for k in getattr(self.solver, "iterations", [])[k0:]]
+            raise
         self._last_newton = res.iterations
         u, lam, p = self._split(res.x, udir, p_dir, s)
+        if self.predictor != "none":
+            self._increments = [*self._increments[-1:], (None, u - old.u.ravel(), lam - mech.patch_values(old.lam),
+                                                         p - old.p, dt)]
         u = u.reshape(-1, d)
         sflux = self.stabilisation_weights * self.stabilisation_jumps(p - old.p) / dt
         ap = self.aperture_of(u)
@@ -982,6 +1029,8 @@ class Poromechanics:
         new = PoroState(t, u, mech.face_values(lam), p, ap, np.asarray(mech.face_values(res.active_set), np.int8),
                         flux_ap, sflux)
         self._last_settled = old.state is not None and np.array_equal(new.state, old.state)
+        if self.predictor != "none":
+            self._increments[-1] = (new, *self._increments[-1][1:])
         c = res.counts
         info = StepInfo(res.iterations, res.residual, c.get("open", 0), c.get("stick", 0), c.get("slip", 0),
                         res.history, {"setup": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear})

@@ -202,6 +202,9 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             lin_its = [k for i in subs for k in (i.linear_iterations or [])]
             if lin_its:
                 row["linear_iterations"] = lin_its
+            if rec.failed:
+                # attempts given up and cut: not part of the accepted step's counts, but of its cost
+                row["failed_attempts"] = rec.failed
             row["conductivity_growth"] = growth
             if growth > CONDUCTIVITY_GROWTH_WARN and not warned:
                 warned.append(rec.index)
@@ -217,6 +220,9 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             steps.append(row)
             lin = f", {sum(lin_its)} GMRES iterations" if lin_its else ""
             sub = f" in {len(subs)} sub-steps" if len(subs) > 1 else ""
+            if rec.failed:
+                sub += f" (+{sum(f.get('newton_iterations', 0) for f in rec.failed)} in {len(rec.failed)} failed attempt" \
+                       f"{'s' if len(rec.failed) > 1 else ''})"
             log.info("step %d/%d: t = %g s, %d Newton iterations%s (residual %.1e)%s, open %d, stick %d, slip %d, "
                      "%.2f s (%s)", rec.index, len(schedule.times()) - 1, rec.time, row["newton_iterations"], sub,
                      info.residual, lin, info.open, info.stick, info.slip, rec.seconds, rec.progress)
@@ -283,7 +289,11 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             # the time split covers the whole run, the initial equilibrium included; the plots are
             # part of "other"
             "totals": {**clock.totals(ms.solver), "seconds_plots": t_plots,
-                       "newton_iterations": int(sum(s["newton_iterations"] for s in steps))},
+                       "newton_iterations": int(sum(s["newton_iterations"] for s in steps)),
+                       "newton_iterations_failed": int(sum(f.get("newton_iterations", 0) for s in steps
+                                                           for f in s.get("failed_attempts", ()))),
+                       "linear_iterations_failed": int(sum(sum(f.get("linear_iterations", ())) for s in steps
+                                                           for f in s.get("failed_attempts", ())))},
         }
         write_legend(stage, summary, *POROMECHANICS_ARRAYS)     # README.txt and summary's "legend"
         write_json(stage / "summary.json", summary)

@@ -32,6 +32,16 @@ class StepRecord:
     substeps: list = field(default_factory=list)    # info of every accepted sub-step, in order
     rejected: int = 0                                # sub-steps solved and then rejected by ``accept``
     forced: int = 0                                  # sub-steps ``accept`` rejected at the smallest size (kept)
+    failed: list = field(default_factory=list)       # attempts that raised: their span, cost and reason
+
+
+def _failure(exc: RunError, t0: float, t1: float) -> dict:
+    """A failed attempt as the run reports it: its work counts in the run's totals."""
+    out = {"from": t0, "to": t1, "reason": str(exc).split(":")[0]}
+    for key in ("newton_iterations", "linear_iterations"):
+        if getattr(exc, key, None) is not None:
+            out[key] = getattr(exc, key)
+    return out
 
 
 def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | None = None, label: str = "step",
@@ -81,6 +91,7 @@ def _advance(state, t0, t1, step, max_cuts, depth, rec):
             raise RunError(f"the step from t = {t0:g} s to {t1:g} s failed after {depth} cut(s) of the time step "
                            f"(smallest Δt {t1 - t0:g} s): {exc}") from None
         log.warning("step %g → %g s failed (%s); retrying as two half steps", t0, t1, str(exc).split(":")[0])
+        rec.failed.append(_failure(exc, t0, t1))
         tm = 0.5 * (t0 + t1)
         mid = _advance(state, t0, tm, step, max_cuts, depth + 1, rec)
         return _advance(mid, tm, t1, step, max_cuts, depth + 1, rec)
@@ -104,6 +115,7 @@ def _adapted(state, t0, t1, step, max_cuts, accept, rec, h, dt, max_rejections):
                                f"time step (smallest Δt {size:g} s): {exc}") from None
             log.warning("step %g → %g s failed (%s); retrying with half the step", t, t + size,
                         str(exc).split(":")[0])
+            rec.failed.append(_failure(exc, t, t + size))
             fails += 1
             rec.cuts = max(rec.cuts, fails)
             h[0] = 0.5 * size

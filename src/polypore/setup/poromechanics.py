@@ -94,7 +94,8 @@ def poro_setup(case: CaseFile, fm):
                           initial_traction=None if ref is None else ref.traction(fm),
                           dilatancy=fs.info.get("tan_psi", 0.0),
                           pressure_stabilisation=STABILISATION if fs.info.get("pressure_stabilisation") is None
-                          else fs.info["pressure_stabilisation"])
+                          else fs.info["pressure_stabilisation"],
+                          predictor=spec.solver.predictor if spec.solver is not None else "linear")
     model.reference = ref
     return model, fs, ms
 

@@ -20,7 +20,7 @@ from ...cases.flow_exact import NAMES as FLOW_SOLUTIONS
 from ...cases.reference import REFERENCES
 from ...core.expressions import CONSTANTS, FUNCTIONS, VARIABLES
 from ...solvers.linear import BACKENDS
-from ...solvers.newton import FORCING
+from ...solvers.newton import FORCING, PREDICTORS
 from .flow import Flow
 from .geometry import CORNERPOINT, FRACTURE_DATA, BoundaryPart, Fracture, Mesh, Region
 from .mechanics import Contact, Material, Mechanics, RegionMaterial
@@ -39,7 +39,7 @@ READS = {"mechanics": _COMMON | {"material", "materials", "mechanics", "contact"
 SOLVER_KEYS = {"mechanics": {"linear", "tolerance", "increment_tolerance", "max_iterations", "forcing", "forcing_max",
                                "petsc"},
                "flow": {"linear", "linear_tolerance", "petsc"}}
-SOLVER_KEYS["poromechanics"] = SOLVER_KEYS["mechanics"] | SOLVER_KEYS["flow"]
+SOLVER_KEYS["poromechanics"] = SOLVER_KEYS["mechanics"] | SOLVER_KEYS["flow"] | {"predictor"}
 _NAME = re.compile(r"[\w.-]+")
 # output times of one run: each writes a set of VTU files and a summary row, so 100,000 of them
 # are hours of writing and gigabytes of files (issue 25), never a considered choice
@@ -129,6 +129,9 @@ class Solver(Table):
                                       "weighted norm, or 'fixed' (1e-8 relative, plain 2-norm)")
     forcing_max: number(gt=0, lt=1) = Field(1e-2, description="mechanics: loosest relative tolerance of an "
                                             "Eisenstat-Walker linear solve")
+    predictor: choice(*PREDICTORS) = Field("linear", description="poromechanics: first Newton iterate of a time "
+                                           "step, the last step's increment extrapolated ('linear', kept where its "
+                                           "residual is the smaller) or the old state ('none')")
     linear_tolerance: Positive = Field(1e-10, description="flow: relative residual of iterative backends")
     petsc: Annotated[dict, PlainValidator(_petsc_options), WithJsonSchema(
         {"type": "object", "additionalProperties": {"type": ["string", "number", "boolean"]}})] | None = Field(
@@ -306,7 +309,8 @@ class Case(Table):
                  key=("exact", "solution"))
         if self.solver is not None:
             for key in sorted(self.solver.given() - SOLVER_KEYS[model]):
-                fail(f"applies to {' and '.join(m for m in ('mechanics', 'flow') if key in SOLVER_KEYS[m])} only; "
+                users = [m for m in ("mechanics", "flow") if key in SOLVER_KEYS[m]] or ["poromechanics"]
+                fail(f"applies to {' and '.join(users)} only; "
                      f"this is a {model} case", key=("solver", key))
 
     def _geometry(self):
