@@ -51,6 +51,42 @@ def test_march_cuts_failing_steps_then_gives_up():
         march(TimeSchedule(0.0, 4.0, 4.0, max_cuts=1), 0.0, step)
 
 
+def test_march_records_what_failed_attempts_cost():
+    """A cut step's failed attempts keep their span, reason and the work the solver attached."""
+    s = TimeSchedule(0.0, 2.0, 2.0, max_cuts=2)
+
+    def step(state, t0, t1):
+        if t1 - t0 > 1.0:
+            exc = RunError("poromechanics Newton stalled: the line search cut the last 3 steps")
+            exc.newton_iterations, exc.linear_iterations = 10, [7, 8]
+            raise exc
+        return state + (t1 - t0), {"newton_iterations": 3}
+
+    _, (rec,) = march(s, 0.0, step)
+    assert rec.failed == [{"from": 0.0, "to": 2.0, "reason": "poromechanics Newton stalled",
+                           "newton_iterations": 10, "linear_iterations": [7, 8]}]
+    assert len(rec.substeps) == 2
+
+
+def test_newton_reports_the_iterations_of_a_failed_attempt():
+    import scipy.sparse as sp
+
+    from polypore.solvers.newton import Linearisation, NewtonOptions, semismooth_newton
+
+    class Flip:
+        def solve(self, J, b):
+            return np.array([2.0])
+
+    def lin(x):
+        return Linearisation(np.array([x[0] ** 2 + 1.0]), sp.csr_matrix(np.eye(1)), {"r": float(x[0] ** 2 + 1)},
+                             {}, None)
+
+    with pytest.raises(RunError) as err:
+        semismooth_newton(lin, np.array([-1.0]), Flip(), lambda dx, x: 1.0,
+                          NewtonOptions(max_iterations=7, free_steps=2, min_step=1.0), verbose=False)
+    assert err.value.newton_iterations == 7
+
+
 def test_march_adapts_the_sub_steps_to_the_callers_test():
     """``accept`` rejecting a converged step (time.max_conductivity_growth): the sub-step halves on a
     rejection, doubles after an acceptance (up to the schedule step) and carries over to the next

@@ -33,6 +33,10 @@ def _spec(**tables):
     ({"model": "flow", "exact": {"solution": "contact-2d"}}, "exact.solution", "not a solution of a flow case"),
     ({"material": {"E": 1e9, "nu": 0.2}, "solver": {"linear_tolerance": 1e-8}}, "solver.linear_tolerance",
      "applies to flow only"),
+    ({"material": {"E": 1e9, "nu": 0.2}, "solver": {"predictor": "none"}}, "solver.predictor",
+     "applies to poromechanics only; this is a mechanics case"),
+    ({"material": {"E": 1e9, "nu": 0.2}, "flow": {}, "solver": {"predictor": "quadratic"}}, "solver.predictor",
+     "allowed: linear, none"),
     # conflicts
     ({"material": {"E": 1e9, "nu": 0.2}, "materials": [{"region": "a", "E": 1e9, "nu": 0.2}]}, "materials",
      "not both"),
