@@ -198,8 +198,7 @@ class Poromechanics:
         not a case-file key yet: at a dilatant slip onset its Newton cycles, docs/fault_bounds.md).
     predictor : "linear" or "none"
         first Newton iterate of a step: the previous step's increment (u, λ, p) extrapolated to this
-        Δt, kept only where its residual is below that of the old state (:meth:`step`), or the old
-        state itself.
+        Δt (:meth:`_predicted_start`), or the old state itself.
     """
 
     def __init__(self, fm: FracturedMesh, mech_data: MechanicsData, flow_data: FlowData,
@@ -956,8 +955,8 @@ class Poromechanics:
         Why: a step's loads (injection, pressure diffusion) change smoothly in time, and the faces
         that slipped in the last step slip on; from the old state itself every such face starts at
         zero slip on its friction cone, where the semi-smooth Newton flips it between stick and
-        slip (docs/iterative_cornerpoint.md, "The predictor"). Newton keeps x0 where this
-        iterate's residual is larger (a change of schedule the extrapolation cannot know).
+        slip (docs/iterative_cornerpoint.md, ninth session). Newton falls back to x0 only where
+        this iterate's residual is not finite (:func:`~polypore.solvers.newton.semismooth_newton`).
         """
         hit = [inc for inc in self._increments if inc[0] is old]
         if self.predictor == "none" or not hit:
@@ -993,6 +992,9 @@ class Poromechanics:
         t1 = time.perf_counter()
         k0 = len(getattr(self.solver, "iterations", []))
 
+        def krylov_since():
+            return [int(k) for k in getattr(self.solver, "iterations", [])[k0:]]
+
         def incr(dx, x):
             out = 0.0
             for a, b in ((0, nfree), (nfree, nfree + nl), (nfree + nl, len(x))):
@@ -1015,13 +1017,10 @@ class Poromechanics:
                                     first_tight=first_tight, x_pred=self._predicted_start(old, dt, ctx))
         except RunError as exc:
             # the failed attempt's Krylov work, for the run's report (runs/march.py)
-            exc.linear_iterations = [int(k) for k in getattr(self.solver, "iterations", [])[k0:]]
+            exc.linear_iterations = krylov_since()
             raise
         self._last_newton = res.iterations
         u, lam, p = self._split(res.x, udir, p_dir, s)
-        if self.predictor != "none":
-            self._increments = [*self._increments[-1:], (None, u - old.u.ravel(), lam - mech.patch_values(old.lam),
-                                                         p - old.p, dt)]
         u = u.reshape(-1, d)
         sflux = self.stabilisation_weights * self.stabilisation_jumps(p - old.p) / dt
         ap = self.aperture_of(u)
@@ -1030,11 +1029,12 @@ class Poromechanics:
                         flux_ap, sflux)
         self._last_settled = old.state is not None and np.array_equal(new.state, old.state)
         if self.predictor != "none":
-            self._increments[-1] = (new, *self._increments[-1][1:])
+            self._increments = [*self._increments[-1:], (new, (u - old.u).ravel(), lam - mech.patch_values(old.lam),
+                                                         p - old.p, dt)]
         c = res.counts
         info = StepInfo(res.iterations, res.residual, c.get("open", 0), c.get("stick", 0), c.get("slip", 0),
                         res.history, {"setup": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear})
-        info.linear_iterations = [int(k) for k in getattr(self.solver, "iterations", [])[k0:]]
+        info.linear_iterations = krylov_since()
         info.conductivity_growth = self.conductivity_growth(old.aperture, new.aperture)
         if energy:
             info.energy = step_energy(self, old, new)

@@ -90,8 +90,8 @@ def _advance(state, t0, t1, step, max_cuts, depth, rec):
         if depth >= max_cuts:
             raise RunError(f"the step from t = {t0:g} s to {t1:g} s failed after {depth} cut(s) of the time step "
                            f"(smallest Δt {t1 - t0:g} s): {exc}") from None
-        log.warning("step %g → %g s failed (%s); retrying as two half steps", t0, t1, str(exc).split(":")[0])
         rec.failed.append(_failure(exc, t0, t1))
+        log.warning("step %g → %g s failed (%s); retrying as two half steps", t0, t1, rec.failed[-1]["reason"])
         tm = 0.5 * (t0 + t1)
         mid = _advance(state, t0, tm, step, max_cuts, depth + 1, rec)
         return _advance(mid, tm, t1, step, max_cuts, depth + 1, rec)
@@ -113,9 +113,9 @@ def _adapted(state, t0, t1, step, max_cuts, accept, rec, h, dt, max_rejections):
             if fails >= max_cuts:
                 raise RunError(f"the step from t = {t:g} s to {t + size:g} s failed after {fails} cut(s) of the "
                                f"time step (smallest Δt {size:g} s): {exc}") from None
-            log.warning("step %g → %g s failed (%s); retrying with half the step", t, t + size,
-                        str(exc).split(":")[0])
             rec.failed.append(_failure(exc, t, t + size))
+            log.warning("step %g → %g s failed (%s); retrying with half the step", t, t + size,
+                        rec.failed[-1]["reason"])
             fails += 1
             rec.cuts = max(rec.cuts, fails)
             h[0] = 0.5 * size

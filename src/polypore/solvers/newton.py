@@ -244,7 +244,7 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
     increment extrapolated: Newton starts there unless its residual is not finite. Not "where its
     residual is the smaller": at x0 the residual holds only the step's new loads, which a good
     prediction trades for small residuals in every block, and that comparison threw the predictor
-    away where it halved the Newton iterations (docs/iterative_cornerpoint.md, "The predictor").
+    away where it halved the Newton iterations (docs/iterative_cornerpoint.md, ninth session).
     """
     if options.forcing not in FORCING:
         raise ValueError(f"NewtonOptions.forcing must be one of {FORCING}, got {options.forcing!r}")
@@ -269,9 +269,7 @@ def _krylov_total(solver) -> int | None:
     return None if its is None else int(sum(its))
 
 
-def _newton(linearise, x0, solver, increment_norm, options, verbose, first_tight, x_pred=None,
-            seen=None) -> NewtonResult:
-    seen = {} if seen is None else seen
+def _newton(linearise, x0, solver, increment_norm, options, verbose, first_tight, x_pred, seen) -> NewtonResult:
     inexact = options.forcing != "fixed" and bool(getattr(solver, "takes_target", False))
     prev_fnorm = prev_eta = None
     x = np.array(x0, float)
@@ -282,14 +280,14 @@ def _newton(linearise, x0, solver, increment_norm, options, verbose, first_tight
     step = 1.0
     t0 = time.perf_counter()
     with SPLIT.timed("assembly"):
+        lin = None
         if x_pred is not None:
             lin = linearise(np.array(x_pred, float))
             if np.all(np.isfinite(lin.residual)):
                 x = np.array(x_pred, float)
             else:
-                lin.jacobian = None
-                lin = linearise(x)
-        else:
+                lin.jacobian = lin = None
+        if lin is None:
             lin = linearise(x)
     t_asm += time.perf_counter() - t0
     for it in range(options.max_iterations + 1):

@@ -130,8 +130,8 @@ class Solver(Table):
     forcing_max: number(gt=0, lt=1) = Field(1e-2, description="mechanics: loosest relative tolerance of an "
                                             "Eisenstat-Walker linear solve")
     predictor: choice(*PREDICTORS) = Field("linear", description="poromechanics: first Newton iterate of a time "
-                                           "step, the last step's increment extrapolated ('linear', kept where its "
-                                           "residual is the smaller) or the old state ('none')")
+                                           "step, the last step's increment extrapolated ('linear'; not over a step "
+                                           "more than twice the last) or the old state ('none')")
     linear_tolerance: Positive = Field(1e-10, description="flow: relative residual of iterative backends")
     petsc: Annotated[dict, PlainValidator(_petsc_options), WithJsonSchema(
         {"type": "object", "additionalProperties": {"type": ["string", "number", "boolean"]}})] | None = Field(
