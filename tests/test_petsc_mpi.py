@@ -199,7 +199,7 @@ def _polypore(args, out, ranks=None):
 
 @pytest.mark.parametrize("run", list(RUNS))
 def test_two_ranks_repeat_the_serial_newton_history(tmp_path, run):
-    """Same Newton iterations, residuals (1e-8 relative above 1e-6, 1e-9 absolute: the norms are
+    """Same Newton iterations, residuals (1e-8 relative above 1e-3, 1e-10 absolute: the norms are
     scaled), open/stick/slip counts of every iterate, final contact states and fracture fields on 2
     ranks as serially; rank 0 writes the serial run's files."""
     pytest.importorskip("petsc4py.PETSc")
@@ -215,9 +215,14 @@ def test_two_ranks_repeat_the_serial_newton_history(tmp_path, run):
     p = _polypore(args, tmp_path / "two", ranks=2)
     assert "distributed run on 2 MPI ranks" in p.stderr and "partition:" in p.stderr
     assert p.stdout.count(f"case {case}:") == 1                       # rank 0 reports
-    rep = compare(tmp_path / "serial", tmp_path / "two")
+    # Two direct solvers (SuperLU serially, MUMPS on 2 ranks) leave iterates that differ by round-off
+    # amplified by the Jacobian's condition: 1e-12 to 3e-12 in the scaled norms (initial residual 1).
+    # That is an absolute floor, so residuals are compared relatively only above 1e-3 (below, 1e-8
+    # relative would demand 1e-12 absolute: cornerpoint-injection showed 1.2e-8 at 9e-5) and
+    # absolutely everywhere, to 1e-10.
+    rep = compare(tmp_path / "serial", tmp_path / "two", floor=1e-3)
     assert rep["same_iterations"] and rep["same_counts"] and rep["same_states"], rep
-    assert rep["max_rel_residual"] <= 1e-8 and rep["max_abs"] <= 1e-9, rep
+    assert rep["max_rel_residual"] <= 1e-8 and rep["max_abs"] <= 1e-10, rep
     assert rep["max_rel_fracture_fields"] <= 1e-7, rep
     assert rep.get("max_rel_fluxes", 0.0) <= 1e-8, rep
     serial = sorted(f.name for f in (tmp_path / "serial").iterdir())
