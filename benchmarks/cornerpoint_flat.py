@@ -34,7 +34,6 @@ import time
 import numpy as np
 import sympy as sp
 
-from polypore.discretisation.hfv import cell_points
 from polypore.mesh import FracturedMesh
 from polypore.mesh.cornerpoint import BOUNDARY_NAMES, FaultSpec, generate_grid, process_grid
 from polypore.models.flow import FlowData, FlowModel, Pressure
@@ -121,9 +120,10 @@ def solve(n: int, a: float, stabs, flow: bool, linear: str):
                           "seconds": time.perf_counter() - t0}
     if flow:
         t0 = time.perf_counter()
-        sol = FlowModel(fm, FlowData(permeability=K, viscosity=ETA), {b: Pressure(p) for b in names}, cell_source=h,
-                        solver=LinearSolver("amg", symmetric=True, rtol=1e-12)).solve_steady()
-        xp = cell_points(mesh)
+        flow = FlowModel(fm, FlowData(permeability=K, viscosity=ETA), {b: Pressure(p) for b in names}, cell_source=h,
+                         solver=LinearSolver("amg", symmetric=True, rtol=1e-12))
+        sol = flow.solve_steady()
+        xp = flow.assembler.hfv.points
         pe = p(*xp.T)
         row["flow"] = {"p": l2(sol.cell - pe, pe, vol), "seconds": time.perf_counter() - t0}
     return row

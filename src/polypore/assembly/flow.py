@@ -113,13 +113,14 @@ class FlowAssembler:
     conductivity : (n_cells, d, d) K_m/η in m²/(Pa·s).
     alpha, fracture_alpha : float, optional
         HFV stabilisation on the matrix (default √d) and on the fracture mesh (√(d−1)).
+    cell_point : "auto" or "centroid": the matrix cells' points x_K (`matrix_hfv`).
     """
 
-    def __init__(self, mesh, network, conductivity, alpha=None, fracture_alpha=None):
+    def __init__(self, mesh, network, conductivity, alpha=None, fracture_alpha=None, cell_point="auto"):
         t0 = time.perf_counter()
         self.mesh = mesh
         self.network = network
-        self.hfv = matrix_hfv(mesh, conductivity, alpha)
+        self.hfv = matrix_hfv(mesh, conductivity, alpha, cell_point)
         self.fcells = fracture_cells(mesh, network)
         self.fhfv_unit = fracture_hfv(self.fcells, np.ones(network.n_faces), fracture_alpha, mesh.dim)
         self.dofs = FlowDofs.build(mesh, network)

@@ -29,6 +29,7 @@ import numpy as np
 
 from ..assembly.flow import FlowAssembler, FlowSystem
 from ..core.errors import InputError
+from ..discretisation.hfv import CELL_POINTS
 from ..solvers.distributed import context, distribute, min_owner
 from ..solvers.linear import LinearSolver
 from ..solvers.timing import SPLIT
@@ -219,13 +220,15 @@ class FlowModel:
         h_f in m³/s per m² of fracture (m/s), at fracture face centroids.
     alpha, fracture_alpha : float, optional
         HFV stabilisation (defaults √d and √(d−1)).
+    cell_point : "auto" (default) or "centroid"
+        HFV cell points (`discretisation.hfv.matrix_hfv`).
     solver : LinearSolver, optional
         Default ``LinearSolver("auto", symmetric=True)``.
     """
 
     def __init__(self, fmesh, data: FlowData, boundary: Mapping | None = None, *,
                  fracture_boundary: Mapping | None = None, cell_source=0.0, fracture_source=0.0,
-                 alpha=None, fracture_alpha=None, solver: LinearSolver | None = None):
+                 alpha=None, fracture_alpha=None, solver: LinearSolver | None = None, cell_point: str = "auto"):
         t0 = time.perf_counter()
         self.fmesh = fmesh
         self.mesh = mesh = fmesh.mesh
@@ -259,7 +262,10 @@ class FlowModel:
         self.solver = solver or LinearSolver("auto", symmetric=True)
         self._resolve_boundary(dict(boundary or {}), dict(fracture_boundary or {}))
         t1 = time.perf_counter()
-        self.assembler = FlowAssembler(mesh, net, self.permeability / self.viscosity, alpha, fracture_alpha)
+        if cell_point not in CELL_POINTS:
+            raise InputError("flow.cell_point", f"must be one of {', '.join(CELL_POINTS)}, got {cell_point!r}")
+        self.assembler = FlowAssembler(mesh, net, self.permeability / self.viscosity, alpha, fracture_alpha,
+                                       cell_point)
         self.fracture_cells = self.assembler.fcells
         self.setup_seconds = {"validation": t1 - t0, "local_operators_and_pattern": time.perf_counter() - t1}
         self._cache = None

@@ -177,7 +177,7 @@ class Poromechanics:
     flow_data : FlowData
         Flow data; ``aperture`` is the closed aperture d_f^c (evaluated at t = 0) and
         ``biot_coefficient`` the b of both equations.
-    flow_boundary, fracture_boundary, cell_source, fracture_source, alpha, fracture_alpha :
+    flow_boundary, fracture_boundary, cell_source, fracture_source, alpha, fracture_alpha, cell_point :
         as in :class:`FlowModel` (time-dependent values are evaluated at t^n).
     solver : LinearSolver, optional
         Default sparse direct (pardiso if installed, else SuperLU).
@@ -206,7 +206,7 @@ class Poromechanics:
                  cell_source=0.0, fracture_source=0.0, alpha=None, fracture_alpha=None,
                  solver: LinearSolver | None = None, newton: NewtonOptions | None = None,
                  initial_traction=None, dilatancy=0.0, pressure_stabilisation: float = STABILISATION,
-                 conductivity_aperture: str = "previous", predictor: str = "linear"):
+                 conductivity_aperture: str = "previous", predictor: str = "linear", cell_point: str = "auto"):
         t0 = time.perf_counter()
         if predictor not in PREDICTORS:
             raise InputError("solver.predictor", f"must be one of {', '.join(PREDICTORS)}, got {predictor!r}")
@@ -231,7 +231,7 @@ class Poromechanics:
         self.mech = ContactMechanics(fm, mech_data, aux, self.newton)
         self.flow = FlowModel(fm, flow_data, flow_boundary, fracture_boundary=fracture_boundary,
                               cell_source=cell_source, fracture_source=fracture_source, alpha=alpha,
-                              fracture_alpha=fracture_alpha,
+                              fracture_alpha=fracture_alpha, cell_point=cell_point,
                               solver=(LinearSolver("petsc" if backend == "block-petsc" else "amg", symmetric=True,
                                                    petsc_options=shared(self.solver.petsc_options))
                                       if block else aux))

@@ -68,6 +68,7 @@ class FlowSetup:
     exact: DarcyManufactured | None = None
     on_gamma1: np.ndarray | None = None
     info: dict = field(default_factory=dict)
+    cell_point: str = "auto"
 
     @property
     def steady(self) -> bool:
@@ -76,7 +77,7 @@ class FlowSetup:
     def model(self) -> FlowModel:
         return FlowModel(self.fm, self.data, self.boundary, fracture_boundary=self.fracture_boundary,
                          cell_source=self.cell_source, fracture_source=self.fracture_source, alpha=self.alpha,
-                         fracture_alpha=self.fracture_alpha, solver=self.solver)
+                         fracture_alpha=self.fracture_alpha, solver=self.solver, cell_point=self.cell_point)
 
 
 # -- helpers -------------------------------------------------------------------------------------
@@ -333,7 +334,7 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
                      initial, sec.alpha,
                      sec.fracture_alpha, exact, on1,
                      {"fracture_variables": fvars, "tan_psi": float(np.tan(np.radians(sec.dilatancy_angle))),
-                      "pressure_stabilisation": sec.pressure_stabilisation})
+                      "pressure_stabilisation": sec.pressure_stabilisation}, sec.cell_point)
 
 
 class _PerFracture:

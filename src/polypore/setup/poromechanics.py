@@ -89,7 +89,7 @@ def poro_setup(case: CaseFile, fm):
     ref = reference_state(case, fm)
     model = Poromechanics(fm, ms.data, flow_data, fs.boundary, fracture_boundary=fs.fracture_boundary,
                           cell_source=fs.cell_source, fracture_source=fs.fracture_source, alpha=fs.alpha,
-                          fracture_alpha=fs.fracture_alpha, solver=ms.solver,
+                          fracture_alpha=fs.fracture_alpha, cell_point=fs.cell_point, solver=ms.solver,
                           newton=dataclasses.replace(ms.newton, label="poromechanics Newton", stall_iterations=12),
                           initial_traction=None if ref is None else ref.traction(fm),
                           dilatancy=fs.info.get("tan_psi", 0.0),

@@ -11,7 +11,8 @@ from typing import Any, Annotated
 
 from pydantic import Field, PlainValidator, WithJsonSchema, model_validator
 
-from .types import (EXPRESSION, Boolean, Expr, ExprOrExact, NonNegative, Positive, Table, Text, _expression,
+from ...discretisation.hfv import CELL_POINTS
+from .types import (choice, EXPRESSION, Boolean, Expr, ExprOrExact, NonNegative, Positive, Table, Text, _expression,
                     _tensor, fail, finite, is_number, number, show, vector)
 
 GRDECL = "grdecl"   # a value taken from the cell keywords of a corner-point grid
@@ -178,6 +179,9 @@ class Flow(Table):
     alpha: Positive | None = Field(None, description="HFV stabilisation α (default √d)")
     fracture_alpha: Positive | None = Field(None, description="HFV stabilisation on the fractures (default "
                                             "√(d−1))")
+    cell_point: choice(*CELL_POINTS) = Field("auto", description="HFV cell points x_K: \"centroid\", or "
+                                              "\"auto\" (the centroid, except on wedge slivers whose HFV "
+                                              "matrix it leaves near-singular: the face-area mean there)")
     fluid_density: Positive = Field(1000.0, description="ρ_w (kg/m³), converts mass rates")
     regions: list[FlowRegion] = Field(default_factory=list, description="per-region permeability")
     boundary: list[FlowBoundary] = Field(default_factory=list, description="one block per boundary part")
