@@ -533,6 +533,7 @@ class _PressureSolve:
             method = "pardiso" if have_pardiso() else "twolevel"
         self.method = method
         self._key = self._ps = self._fact = self.apply = None
+        self._colours = None            # (pattern digest, the two-level cell blocks' colouring)
         self.builds = 0
 
     def update(self, F, Gpu, Gup, dA, B=None, groups=None):
@@ -565,8 +566,14 @@ class _PressureSolve:
         elif self.method == "twolevel" and groups is not None:
             from .pressure_twolevel import TwoLevelPressure
 
+            h = hashlib.sha1()
+            # the colouring depends on the pattern, its explicit zeros and the masks only
+            for a in (Sp.indptr, Sp.indices, np.packbits(Sp.data != 0), groups[0], groups[1]):
+                h.update(np.ascontiguousarray(a))
+            reuse = self._colours[1] if self._colours is not None and self._colours[0] == h.digest() else None
             with repeatable_random():
-                T = TwoLevelPressure(Sp, B, groups[0], groups[1])
+                T = TwoLevelPressure(Sp, B, groups[0], groups[1], colours=reuse)
+            self._colours = (h.digest(), T.colours)
             self.apply = T.apply
         else:
             sign = -1.0 if np.mean(Sp.diagonal()) < 0 else 1.0   # AMG wants a positive definite operator
