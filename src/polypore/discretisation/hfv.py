@@ -270,21 +270,32 @@ def sliver_points(mesh, xK: np.ndarray, cells: np.ndarray, margin: float = 0.05)
     """
     if not np.any(cells):
         return None
-    g = mesh.geometry
-    cf = mesh.cell_faces
-    cell = cf.rows_of_entries()
-    vec = mesh.cell_face_sign.astype(float)[:, None] * g.face_vector_area[cf.values]
-    area = np.linalg.norm(vec, axis=1)
-    perim = np.bincount(cell, weights=area, minlength=mesh.n_cells)
-    xa = np.stack([np.bincount(cell, weights=area * g.face_centroid[cf.values][:, i], minlength=mesh.n_cells)
+    cell, n, area, perim = _face_planes(mesh)
+    fc = mesh.geometry.face_centroid[mesh.cell_faces.values]
+    xa = np.stack([np.bincount(cell, weights=area * fc[:, i], minlength=mesh.n_cells)
                    for i in range(mesh.dim)], 1) / perim[:, None]
-    dist = np.einsum("ki,ki->k", g.face_centroid[cf.values] - xa[cell], vec / area[:, None])
-    mind = np.full(mesh.n_cells, np.inf)
-    np.minimum.at(mind, cell, dist)
-    ok = np.asarray(cells, bool) & (mind >= margin * g.cell_volume / perim)
+    ok = np.asarray(cells, bool) & (_min_distance(mesh, xa, cell, n) >= margin * mesh.geometry.cell_volume / perim)
     if not np.any(ok):
         return None
     return np.where(ok[:, None], xa, xK)
+
+
+def _face_planes(mesh):
+    """Per (cell, face) entry of ``mesh.cell_faces``: its cell (nnz,), outward unit normal (nnz, d)
+    and area (nnz,); and every cell's boundary measure |∂K| (n_cells,)."""
+    g = mesh.geometry
+    cell = mesh.cell_faces.rows_of_entries()
+    vec = mesh.cell_face_sign.astype(float)[:, None] * g.face_vector_area[mesh.cell_faces.values]
+    area = np.linalg.norm(vec, axis=1)
+    return cell, vec / area[:, None], area, np.bincount(cell, weights=area, minlength=mesh.n_cells)
+
+
+def _min_distance(mesh, points, cell, n) -> np.ndarray:
+    """(n_cells,) the smallest signed distance from each cell's point to its face planes."""
+    dist = np.einsum("ki,ki->k", mesh.geometry.face_centroid[mesh.cell_faces.values] - points[cell], n)
+    mind = np.full(mesh.n_cells, np.inf)
+    np.minimum.at(mind, cell, dist)
+    return mind
 
 
 def cell_points(mesh, margin: float = 0.05) -> np.ndarray:
@@ -299,18 +310,10 @@ def cell_points(mesh, margin: float = 0.05) -> np.ndarray:
     """
     g = mesh.geometry
     cf = mesh.cell_faces
-    cell = cf.rows_of_entries()
-    sgn = mesh.cell_face_sign.astype(float)[:, None]
-    vec = sgn * g.face_vector_area[cf.values]
-    area = np.linalg.norm(vec, axis=1)
-    n = vec / area[:, None]
-    dist = np.einsum("ki,ki->k", g.face_centroid[cf.values] - g.cell_centroid[cell], n)
-    perim = np.bincount(cell, weights=area, minlength=mesh.n_cells)
+    cell, n, _, perim = _face_planes(mesh)
     scale = g.cell_volume / perim
-    mind = np.full(mesh.n_cells, np.inf)
-    np.minimum.at(mind, cell, dist)
     xK = g.cell_centroid.copy()
-    bad = np.flatnonzero(mind < margin * scale)
+    bad = np.flatnonzero(_min_distance(mesh, xK, cell, n) < margin * scale)
     if bad.size:
         from scipy.optimize import linprog
 

@@ -174,9 +174,8 @@ class TwoLevelPressure:
         if coarse is None or not np.any(coarse):
             raise ValueError("TwoLevelPressure needs a non-empty coarse set")
         cells = np.asarray(coarse, bool)
-        blk = np.zeros(n, bool) if block is None else np.asarray(block, bool)
         C = np.flatnonzero(cells)
-        Fi = np.flatnonzero(~np.asarray(coarse, bool))
+        Fi = np.flatnonzero(~cells)
         W = abs(K[Fi][:, C]).tocsr()
         rs = np.asarray(W.sum(axis=1)).ravel()
         rs[rs == 0.0] = 1.0                    # a face touching no coarse unknown: smoother only
@@ -205,6 +204,7 @@ class TwoLevelPressure:
         self._Pk = Pk
         self._c = c
         self.K = K
+        blk = np.zeros(n, bool) if block is None else np.asarray(block, bool)
         self._blk = np.flatnonzero(blk)
         self._lu = spla.splu(K[self._blk][:, self._blk].tocsc()) if self._blk.size else None
         self._cells = None
