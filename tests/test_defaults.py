@@ -188,7 +188,7 @@ def test_auto_linear_solver_by_size_and_install():
     def fm(n, dim=3):          # d × nodes + cells + faces = n (nodes only)
         return SimpleNamespace(mesh=SimpleNamespace(dim=dim, n_nodes=n // dim, n_cells=0, n_faces=0))
 
-    assert resolve_linear("auto", fm(60_000), 1, True)[0] == "pardiso"
+    assert resolve_linear("auto", fm(BLOCK_DIRECT_MIN - 3), 1, True)[0] == "pardiso"
     assert resolve_linear("auto", fm(BLOCK_DIRECT_MIN + 3), 1, True)[0] == "block-direct"
     assert resolve_linear("auto", fm(SUPERLU_MAX), 1, False)[0] == "superlu"
     choice, why = resolve_linear("auto", fm(60_000), 1, False)

@@ -24,10 +24,10 @@ log = logging.getLogger("polypore")
 
 # solver.linear = "auto" on coupled 3D systems of order 1 (resolve_linear; docs/iterative_cornerpoint.md)
 # estimated unknowns from which PARDISO on the displacement and pressure blocks (block-direct) wins
-# over PARDISO on the whole system: emerald (estimated 64,901) is a tie (21.6 against 20.8 s wall,
-# equal CPU), the 10⁴-cell weak-scaling grid (estimated 75,214, 82,796 unknowns) 0.86× the wall time
-# and 0.57× the memory (docs/iterative_cornerpoint.md)
-BLOCK_DIRECT_MIN = 70_000
+# over PARDISO on the whole system, since its block solves skip PARDISO's iterative refinement
+# (2026-11-29): emerald (estimated 64,901) 0.83× the CPU time and 0.67× the memory; at about 15,000
+# unknowns a tie (cornerpoint-injection 0.88×, grdecl-b 1.23×); docs/iterative_cornerpoint.md
+BLOCK_DIRECT_MIN = 40_000
 SUPERLU_MAX = 30_000           # estimated unknowns up to which SciPy's SuperLU takes seconds in 3D
 
 
