@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 from polypore.cli import main
-from polypore.discretisation.contact_patches import contact_patches, cross_section_ratio, side_cross_sections
+from polypore.discretisation.contact_patches import (_face_links, contact_patches, cross_section_ratio,
+                                                     side_cross_sections, width_ratio)
 from polypore.mesh.cornerpoint import fractured_mesh, process_grid
 from polypore.mesh.cornerpoint.generate import FaultSpec, generate_grid
 from polypore.models.inf_sup import inf_sup_constant
@@ -209,3 +210,33 @@ def test_minus_side_bubbles_carry_a_uniform_stress_exactly():
     expected = -np.einsum("ij,fj->fi", np.diag([s, 0.7 * s, 0.9 * s]), n)
     np.testing.assert_allclose(st.lam, expected, rtol=0, atol=1e-8 * abs(s))
     assert np.abs(st.u).max() < 1e-12
+
+
+def test_wedge_faces_join_a_patch():
+    """b.grdecl's pinched-out wedges: their fault faces are regular faces of the wedge by
+    cross-section (the area rule keeps them alone) but centimetres to a metre wide against
+    cells tens of metres thick. The width rule joins each to a neighbour: every face narrower
+    than 0.2 × its thicker cell lies in a shared patch, and every patch meets both rules."""
+    from test_cornerpoint import grid_of
+
+    mesh, info = process_grid(grid_of("b.grdecl"), nonplanar="keep")
+    fm = fractured_mesh(mesh, info, sorted(info.faults))
+    P = contact_patches(fm, 0.2)
+    wr, r = width_ratio(fm), cross_section_ratio(fm)
+    # faces without a neighbour on their fault (edges only on the boundary or where faults meet)
+    # cannot join: one such on b.grdecl, at fault_1's junction with fault_2
+    a, b, _ = _face_links(fm)
+    lone = ~np.isin(np.arange(fm.network.n_faces), np.concatenate([a, b]))
+    wedge = (wr < 0.2) & ~lone
+    assert wedge.sum() >= 10 and np.any(wedge & (r >= 0.2))        # faces only the width rule sees
+    sizes = np.bincount(P.face_patch)
+    assert np.all(sizes[P.face_patch[wedge]] > 1)
+    keep = ~np.isin(np.arange(P.n), P.face_patch[lone])
+    assert P.patch_ratio[keep].min() >= 0.2
+    g = mesh.geometry
+    diam = np.zeros(P.n)
+    np.maximum.at(diam, P.face_patch, g.face_diameter[fm.network.faces])
+    width, thick = P.area / diam, np.zeros(P.n)
+    np.maximum.at(thick, P.face_patch, g.face_area[fm.network.faces] / g.face_diameter[fm.network.faces] / wr)
+    assert np.all(width[keep] >= 0.2 * thick[keep] * (1 - 1e-12))
+    assert P.summary()["smallest_face_width_ratio"] == pytest.approx(wr.min())

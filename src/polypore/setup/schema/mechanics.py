@@ -245,7 +245,8 @@ class Contact(Table):
                                               "open (λ = 0)")
     patch_ratio: number(ge=0, le=1) = Field(
         PATCH_RATIO, description="multiplier patches: fracture faces smaller than this fraction of their cells' "
-        "cross-section share their multiplier with neighbours (slivers of corner-point faults); 0: one per face")
+        "cross-section, or narrower than this fraction of the thicker cell's thickness, share their multiplier "
+        "with neighbours (slivers and wedge faces of corner-point faults); 0: one per face")
 
     @model_validator(mode="after")
     def _law_keys(self):
