@@ -18,6 +18,7 @@ from ..models.poromechanics import STABILISATION, Poromechanics
 from .casefile import CaseFile
 from .flow import flow_setup
 from .insitu import reference_state
+from .limits import machine_memory
 from .mechanics import mechanics_setup
 
 log = logging.getLogger("polypore")
@@ -28,6 +29,16 @@ log = logging.getLogger("polypore")
 # (2026-11-29): emerald (estimated 64,901) 0.83× the CPU time and 0.67× the memory; at about 15,000
 # unknowns a tie (cornerpoint-injection 0.88×, grdecl-b 1.23×); docs/iterative_cornerpoint.md
 BLOCK_DIRECT_MIN = 40_000
+# ... and from which AMG on the displacement block (block-amg) wins over its factors: the 30,000-cell
+# study (233,818 unknowns) a tie in time (57 against 60 s wall) at half the memory (0.94 against
+# 1.88 GB); the 10⁵-cell weak-scaling grid (775,608) 0.75× the CPU time and 0.37× the memory
+# (2.7 against 7.1 GB, one day; docs/iterative_cornerpoint.md, "Eleventh session")
+BLOCK_AMG_MIN = 200_000
+# peak memory of a block-direct run: bytes per unknown at 775,608 unknowns and the growth of PARDISO's
+# fill with size (emerald 7.8, the 30,000-cell study 8.0, the 10⁵-cell grid 9.2 kB per unknown: n^0.11)
+BLOCK_DIRECT_BYTES = 9.2e3
+BLOCK_DIRECT_GROWTH = 0.11
+MEMORY_SHARE = 0.5             # block-direct only where its estimate is below this share of the memory
 SUPERLU_MAX = 30_000           # estimated unknowns up to which SciPy's SuperLU takes seconds in 3D
 
 
@@ -39,14 +50,21 @@ def estimated_unknowns(fm) -> int:
     return int(m.dim * m.n_nodes + m.n_cells + m.n_faces)
 
 
+def block_direct_bytes(n: int) -> float:
+    """Estimated peak memory (bytes) of a ``block-direct`` run with about ``n`` unknowns."""
+    return BLOCK_DIRECT_BYTES * n * (n / 775_608) ** BLOCK_DIRECT_GROWTH
+
+
 def resolve_linear(linear: str, fm, order: int, pardiso: bool) -> tuple[str, str]:
     """The coupled model's linear solver for ``solver.linear`` and why.
 
     "auto" is the direct solver (PARDISO when installed, else SuperLU) except on 3D systems of
     order 1 that are large for it: with PARDISO from about BLOCK_DIRECT_MIN unknowns
     "block-direct" (PARDISO on the condensed displacement block and on the fixed-stress pressure
-    block, GMRES around them), without PARDISO from about SUPERLU_MAX unknowns "block-amg" (AMG on
-    that block instead). The P2 systems stay direct: the block solvers were not measured on them.
+    block, GMRES around them), and from BLOCK_AMG_MIN, or where those factors would take more than
+    MEMORY_SHARE of the machine's memory, "block-amg" (AMG on the displacement block); without
+    PARDISO "block-amg" from about SUPERLU_MAX unknowns. The P2 systems stay direct: the block
+    solvers were not measured on them.
     """
     if linear != "auto":
         return linear, "given"
@@ -59,6 +77,14 @@ def resolve_linear(linear: str, fm, order: int, pardiso: bool) -> tuple[str, str
         return direct, "auto: direct" + (" (2D)" if fm.mesh.dim != 3 else " (quadratic displacements)")
     n = estimated_unknowns(fm)
     if pardiso and n >= BLOCK_DIRECT_MIN:
+        need, have = block_direct_bytes(n), machine_memory()
+        if n >= BLOCK_AMG_MIN:
+            return "block-amg", (f"auto: about {n:,} unknowns; AMG on the displacement block (PARDISO on the "
+                                 "pressure block) is as fast as its factors from about "
+                                 f"{BLOCK_AMG_MIN:,} and needs a third of the memory")
+        if need > MEMORY_SHARE * have:
+            return "block-amg", (f"auto: about {n:,} unknowns; the displacement block's factors would need about "
+                                 f"{need / 1e9:.1f} GB of this machine's {have / 1e9:.1f} GB: AMG on it instead")
         return "block-direct", (f"auto: about {n:,} unknowns; PARDISO on the displacement and pressure blocks "
                                 "with GMRES around them is faster and smaller than PARDISO on the whole system "
                                 f"from about {BLOCK_DIRECT_MIN:,}")
