@@ -29,11 +29,11 @@ log = logging.getLogger("polypore")
 # (2026-11-29): emerald (estimated 64,901) 0.83× the CPU time and 0.67× the memory; at about 15,000
 # unknowns a tie (cornerpoint-injection 0.88×, grdecl-b 1.23×); docs/iterative_cornerpoint.md
 BLOCK_DIRECT_MIN = 40_000
-# ... and from which AMG on the displacement block (block-amg) wins over its factors: the 30,000-cell
-# study (233,818 unknowns) a tie in time (57 against 60 s wall) at half the memory (0.94 against
-# 1.88 GB); the 10⁵-cell weak-scaling grid (775,608) 0.75× the CPU time and 0.37× the memory
-# (2.7 against 7.1 GB, one day; docs/iterative_cornerpoint.md, "Eleventh session")
-BLOCK_AMG_MIN = 200_000
+# With PARDISO, block-amg (AMG on the displacement block) only where block-direct's factors would not fit
+# (MEMORY_SHARE): on the 10⁵-cell weak-scaling grid block-amg is 0.75× the CPU time and 0.37× the memory,
+# but on b.grdecl refined 4 × 4 × 4 (786,744 unknowns) its AMG needs 80–150+ GMRES iterations per solve
+# (~1.5 h projected) where block-direct ran in 18 min and 8.2 GB: the factors are the robust choice while
+# they fit (docs/iterative_cornerpoint.md, "Eleventh session")
 # peak memory of a block-direct run: bytes per unknown at 775,608 unknowns and the growth of PARDISO's
 # fill with size (emerald 7.8, the 30,000-cell study 8.0, the 10⁵-cell grid 9.2 kB per unknown: n^0.11)
 BLOCK_DIRECT_BYTES = 9.2e3
@@ -61,8 +61,8 @@ def resolve_linear(linear: str, fm, order: int, pardiso: bool) -> tuple[str, str
     "auto" is the direct solver (PARDISO when installed, else SuperLU) except on 3D systems of
     order 1 that are large for it: with PARDISO from about BLOCK_DIRECT_MIN unknowns
     "block-direct" (PARDISO on the condensed displacement block and on the fixed-stress pressure
-    block, GMRES around them), and from BLOCK_AMG_MIN, or where those factors would take more than
-    MEMORY_SHARE of the machine's memory, "block-amg" (AMG on the displacement block); without
+    block, GMRES around them), and where those factors would take more than MEMORY_SHARE of the
+    machine's memory (:func:`block_direct_bytes`), "block-amg" (AMG on the displacement block); without
     PARDISO "block-amg" from about SUPERLU_MAX unknowns. The P2 systems stay direct: the block
     solvers were not measured on them.
     """
@@ -78,10 +78,6 @@ def resolve_linear(linear: str, fm, order: int, pardiso: bool) -> tuple[str, str
     n = estimated_unknowns(fm)
     if pardiso and n >= BLOCK_DIRECT_MIN:
         need, have = block_direct_bytes(n), machine_memory()
-        if n >= BLOCK_AMG_MIN:
-            return "block-amg", (f"auto: about {n:,} unknowns; AMG on the displacement block (PARDISO on the "
-                                 "pressure block) is as fast as its factors from about "
-                                 f"{BLOCK_AMG_MIN:,} and needs a third of the memory")
         if need > MEMORY_SHARE * have:
             return "block-amg", (f"auto: about {n:,} unknowns; the displacement block's factors would need about "
                                  f"{need / 1e9:.1f} GB of this machine's {have / 1e9:.1f} GB: AMG on it instead")
