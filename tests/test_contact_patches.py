@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from polypore.cli import main
-from polypore.discretisation.contact_patches import (_face_links, contact_patches, cross_section_ratio,
+from polypore.discretisation.contact_patches import (_face_links, _face_widths, contact_patches, cross_section_ratio,
                                                      side_cross_sections, width_ratio)
 from polypore.mesh.cornerpoint import fractured_mesh, process_grid
 from polypore.mesh.cornerpoint.generate import FaultSpec, generate_grid
@@ -233,10 +233,9 @@ def test_wedge_faces_join_a_patch():
     assert np.all(sizes[P.face_patch[wedge]] > 1)
     keep = ~np.isin(np.arange(P.n), P.face_patch[lone])
     assert P.patch_ratio[keep].min() >= 0.2
-    g = mesh.geometry
-    diam = np.zeros(P.n)
-    np.maximum.at(diam, P.face_patch, g.face_diameter[fm.network.faces])
-    width, thick = P.area / diam, np.zeros(P.n)
-    np.maximum.at(thick, P.face_patch, g.face_area[fm.network.faces] / g.face_diameter[fm.network.faces] / wr)
+    diam, thick = np.zeros(P.n), np.zeros(P.n)
+    np.maximum.at(diam, P.face_patch, mesh.geometry.face_diameter[fm.network.faces])
+    np.maximum.at(thick, P.face_patch, _face_widths(fm)[1])
+    width = P.area / diam
     assert np.all(width[keep] >= 0.2 * thick[keep] * (1 - 1e-12))
     assert P.summary()["smallest_face_width_ratio"] == pytest.approx(wr.min())

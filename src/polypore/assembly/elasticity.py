@@ -14,6 +14,7 @@ import scipy.sparse as sp
 
 from ..core.csr import csr_keys
 from ..core.memory import int32_indices
+from ..mesh.geometry import cell_thickness
 
 
 def interleave(blocks, d: int) -> sp.csr_array:
@@ -71,10 +72,7 @@ def nodal_weight(mesh, scaling: str = "diameter") -> np.ndarray:
         return h ** (d - 2)
     if scaling != "thickness":
         raise ValueError(f"nodal scaling must be 'diameter' or 'thickness', got {scaling!r}")
-    cf = mesh.cell_faces
-    largest = np.maximum.reduceat(g.face_area[cf.values], cf.offsets[:-1])
-    t = g.cell_volume / largest
-    return h ** (d - 2) * np.minimum(1.0, FLAT * t / h)
+    return h ** (d - 2) * np.minimum(1.0, FLAT * cell_thickness(mesh) / h)
 
 
 def elasticity_matrix(ops, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 1.0,

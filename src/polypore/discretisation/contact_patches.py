@@ -37,6 +37,7 @@ import scipy.sparse as sp
 from scipy.sparse.csgraph import connected_components
 
 from ..core.ragged import frozen
+from ..mesh.geometry import cell_thickness
 
 __all__ = ["ContactPatches", "contact_patches", "cross_section_ratio", "side_cross_sections", "width_ratio"]
 
@@ -145,9 +146,7 @@ def _face_widths(fm) -> tuple[np.ndarray, np.ndarray]:
     g = mesh.geometry
     if net.n_faces == 0:
         return np.zeros(0), np.zeros(0)
-    cf = mesh.cell_faces
-    largest = np.maximum.reduceat(g.face_area[cf.values], cf.offsets[:-1])
-    t = g.cell_volume / np.maximum(largest, 1e-300)
+    t = cell_thickness(mesh)
     width = g.face_area[net.faces] / g.face_diameter[net.faces] ** (mesh.dim - 2)
     return width, np.maximum(t[net.plus_cell], t[net.minus_cell])
 

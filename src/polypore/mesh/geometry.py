@@ -111,6 +111,14 @@ def _face_pieces_3d(X: np.ndarray):
     return xc, Y, a
 
 
+def cell_thickness(mesh) -> np.ndarray:
+    """(n_cells,) t_K = |K| / (K's largest face measure), m: the cell's thickness (about h_K on
+    shape-regular cells, the layer's thickness on flat ones)."""
+    g, cf = mesh.geometry, mesh.cell_faces
+    largest = np.maximum.reduceat(g.face_area[cf.values], cf.offsets[:-1])
+    return g.cell_volume / np.maximum(largest, 1e-300)
+
+
 def face_node_vector_areas(mesh) -> np.ndarray:
     """(nnz(face_nodes), d) vectors g_{σ,s} with Σ_s v_s ⊗ g_{σ,s} the exact ∫_σ v ⊗ n.
 

@@ -32,8 +32,8 @@ BLOCK_DIRECT_MIN = 40_000
 # With PARDISO, block-amg (AMG on the displacement block) only where block-direct's factors would not fit
 # (MEMORY_SHARE): on the 10⁵-cell weak-scaling grid block-amg is 0.75× the CPU time and 0.37× the memory,
 # but on b.grdecl refined 4 × 4 × 4 (786,744 unknowns) its AMG needs ~90 GMRES iterations per solve and
-# more (~1.5 h by the run's own estimate) where block-direct ran in 18 min and 8.2 GB: the factors are the robust choice while
-# they fit (docs/iterative_cornerpoint.md, "Eleventh session")
+# more (~1.5 h by the run's own estimate) where block-direct ran in 18 min and 8.2 GB: the factors are
+# the robust choice while they fit (docs/iterative_cornerpoint.md, "Eleventh session")
 # peak memory of a block-direct run: bytes per unknown at 775,608 unknowns and the growth of PARDISO's
 # fill with size (emerald 7.8, the 30,000-cell study 8.0, the 10⁵-cell grid 9.2 kB per unknown: n^0.11)
 BLOCK_DIRECT_BYTES = 9.2e3
