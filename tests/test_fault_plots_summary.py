@@ -114,3 +114,15 @@ def test_a_map_that_disagrees_with_the_series_is_reported(run, tmp_path, caplog)
         (bad / p.name).write_bytes(p.read_bytes())
     (bad / "summary.json").write_text(json.dumps(summary))
     assert any("not summary.json's final_fault_states" in n for n in m3.from_run_directory(bad).notes)
+
+
+def test_round_off_slip_gets_no_colour_scale_of_its_own(run, tmp_path):
+    """A fault whose slip is round-off is drawn on the shared scale (blank), not with its 1e-14 mm
+    stretched over the whole colour bar; a fault that slips keeps its own scale."""
+    _, _, _, ran = run
+    d = m3.from_run_directory(run[0])
+    what = plots3d.fault_maps_plot(tmp_path / "a.png", d)
+    assert what["F1"]["slip_colour_max_m"] == pytest.approx(float(d.slip.max()))
+    d.slip = d.slip * 1e-14
+    what = plots3d.fault_maps_plot(tmp_path / "b.png", d)
+    assert what["F1"]["slip_colour_max_m"] == pytest.approx(plots3d.SLIP_FLOOR)

@@ -34,6 +34,8 @@ log = logging.getLogger("polypore")
 
 FIGURES = ("slip_onset.png", "fault_maps.png", "pressure.png", "pressure_map.png")
 STATE_ORDER = ("open", "stick", "slip")
+# slip below this (m) is round-off on any fault of these runs: not given a colour scale of its own
+SLIP_FLOOR = 1e-9
 NEVER = "0.82"                     # colour of faces that never slipped
 
 
@@ -166,8 +168,8 @@ def fault_maps_plot(path, d: PlotData) -> dict:
     out = {}
     tf, tu = time_unit(d.t_end)
     smax = float(np.max(d.slip)) if d.slip.size else 0.0
-    fs, us = value_unit("m", smax)
-    vmax = smax / fs if smax > 0 else 1.0
+    fs, us = value_unit("m", max(smax, SLIP_FLOOR))
+    vmax = max(smax, SLIP_FLOOR) / fs
     aspect = [float(np.clip((p["hi"][1] - p["lo"][1]) * p["k"] / max(p["hi"][0] - p["lo"][0], 1e-300), 0.2, 1.1))
               for p in panels]
     w = 5.0 if len(panels) <= 2 else 4.0                   # inches per panel
@@ -190,8 +192,11 @@ def fault_maps_plot(path, d: PlotData) -> dict:
         pc = PolyCollection(p["polys"], array=d.slip[f] / fs, cmap="magma_r", edgecolors="0.5", linewidths=0.1)
         # each fault on its own scale (its own colour bar): on a scale shared with a fault that slips
         # 20× more, 3 mm of slip showed as blank faces
-        fmax = float(d.slip[f].max()) / fs if f.size else 0.0
-        pc.set_clim(0.0, fmax if fmax > 0 else vmax)
+        # a fault that only moved by round-off (1e-14 mm next to a slipping one) takes the shared
+        # scale and shows blank, not its round-off stretched over the whole colour bar
+        fmax = float(d.slip[f].max()) if f.size else 0.0
+        top = fmax / fs if fmax > max(SLIP_FLOOR, 1e-6 * smax) else vmax
+        pc.set_clim(0.0, top)
         a_slip.add_collection(pc)
         fig.colorbar(pc, ax=a_slip, label=f"slip ({us})", shrink=0.9)
         on = np.ma.masked_invalid(d.onset[f] / tf)
@@ -211,7 +216,7 @@ def fault_maps_plot(path, d: PlotData) -> dict:
         out[p["name"]] = {"time": d.t_final, "faces": int(f.size),
                           **{s_: int(np.sum(shown == k)) for k, s_ in enumerate(STATE_ORDER)},
                           "slip_area_fraction": drawn_frac, "ever_slipped": int(np.sum(~never)),
-                          "title_slip_area_fraction": frac}
+                          "title_slip_area_fraction": frac, "slip_colour_max_m": top * fs}
         first = float(np.nanmin(d.onset[f])) if np.isfinite(d.onset[f]).any() else None
         out[p["name"]]["first_slip"] = first
         a_state.set_title(f"{p['name']} (dip {p['frame'].dip:.0f}°): state, {percent(frac)}% of the area slips "
