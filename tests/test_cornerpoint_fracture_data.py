@@ -7,6 +7,7 @@ import pytest
 from conftest import CORNERPOINT_MESH, case
 
 from polypore.core.errors import InputError
+from polypore.models.mechanics import ContactMechanics
 from polypore.setup.flow import flow_setup
 from polypore.setup.mechanics import mechanics_setup
 from polypore.setup.meshing import build_fractured_mesh
@@ -146,3 +147,28 @@ u = [0, 0, 0]
     c = case(tmp_path, text)
     F = mechanics_setup(c, build_fractured_mesh(c)).data.contact.friction
     assert F.size == 4 and np.all(F == 0.2)
+
+
+def test_slip_weakening_coefficients_per_fault(tmp_path):
+    """slip-weakening reads friction, dynamic_friction and critical_slip from [contact] or a fault's
+    own block; a missing one names the key and the faults, and a dynamic friction above the static
+    one is refused when the law is built."""
+    sw = '[contact]\nlaw = "slip-weakening"\nfriction = 0.6\ndynamic_friction = 0.4\ncritical_slip = 1e-3\n'
+    text = GRID + '[[fractures]]\nname = "F1"\ndynamic_friction = 0.2\n[[fractures]]\nname = "F2"\n' + \
+        REST.replace("[contact]\nfriction = 0.6\n", "") + sw
+    c = case(tmp_path, text)
+    fm = build_fractured_mesh(c)
+    spec = mechanics_setup(c, fm).data.contact
+    on = fm.network.fracture == fm.network.names.index("F1")
+    co = spec.coefficients
+    assert spec.law == "slip-weakening" and np.all(spec.friction == 0.6) and np.all(co["critical_slip"] == 1e-3)
+    assert np.all(co["dynamic_friction"][on] == 0.2) and np.all(co["dynamic_friction"][~on] == 0.4)
+    c = case(tmp_path, text.replace("critical_slip = 1e-3\n", ""), name="d.toml")
+    with pytest.raises(InputError) as e:
+        mechanics_setup(c, build_fractured_mesh(c))
+    assert e.value.field == "contact.critical_slip" and "slip-weakening" in str(e.value)
+    c = case(tmp_path, text.replace("dynamic_friction = 0.4", "dynamic_friction = 0.7"), name="e.toml")
+    fm = build_fractured_mesh(c)
+    with pytest.raises(InputError) as e:
+        ContactMechanics(fm, mechanics_setup(c, fm).data)
+    assert e.value.field == "contact.dynamic_friction" and "must not exceed the static friction" in str(e.value)

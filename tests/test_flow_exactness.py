@@ -341,7 +341,7 @@ def test_full_matrix_matches_condensed_solve():
     res_c = system.A @ x[:d.n] - b
     res_f = (A @ x)[:d.n]
     free = np.ones(d.n, bool)
-    free[model._dirichlet(sol.time)[0]] = False
+    free[model.dirichlet(sol.time)[0]] = False
     fr = np.zeros(d.n)
     fr[d.frac] = 1.0
     keep = free & (fr == 0) & np.isin(np.arange(d.n), d.face[model.mesh.boundary["ymin"]], invert=True)

@@ -5,7 +5,9 @@ import pytest
 
 from polypore.mesh import FracturedMesh, FractureSpec
 from polypore.mesh.generators.cartesian import cartesian_mesh, grid_coordinates
+from polypore.core.errors import InputError
 from polypore.models.contact import OPEN, SLIP, STICK, ContactLaw, linearise_contact
+from polypore.models.friction import Coulomb, SlipWeakening, friction_law
 from polypore.models.mechanics import ContactMechanics, ContactSpec, DisplacementBC, MechanicsData
 from polypore.solvers.linear import rigid_body_modes
 
@@ -104,7 +106,7 @@ def test_contact_branches_at_the_kinks():
     n = np.array([[0.0, 1.0]])
     beta = np.array([2.0])
     area = np.array([1.0])
-    law = ContactLaw("coulomb", np.array([0.5]), np.array([0.0]), beta)
+    law = ContactLaw(Coulomb(np.array([0.5])), beta)
     # y_n = 0 exactly: open
     *_, st = linearise_contact(law, np.array([[0.3, 0.0]]), np.zeros((1, 2)), np.zeros((1, 2)), n, area)
     assert st[0] == OPEN
@@ -119,27 +121,65 @@ def test_contact_branches_at_the_kinks():
     assert np.allclose(C, 0.0, atol=1e-15)
 
 
-@pytest.mark.parametrize("kind", ["coulomb", "tresca", "frictionless"])
+@pytest.mark.parametrize("kind", ["coulomb", "tresca", "frictionless", "slip-weakening"])
 def test_contact_jacobian_matches_finite_differences(kind):
+    """The generalised derivative of every law's projection equations (central differences away
+    from kinks); slip-weakening with slip paths before, inside and past its weakening range, so
+    that its ∂r/∂s term is exercised and also absent."""
     rng = np.random.default_rng(1)
     nf, d = 40, 3
     n = rng.standard_normal((nf, d))
     n /= np.linalg.norm(n, axis=1)[:, None]
-    law = ContactLaw(kind, rng.uniform(0.2, 0.8, nf), rng.uniform(0.1, 1.0, nf), rng.uniform(0.5, 2.0, nf))
+    fs = rng.uniform(0.4, 0.8, nf)
+    law = ContactLaw(friction_law(kind, nf, friction=fs, threshold=rng.uniform(0.1, 1.0, nf),
+                                  dynamic_friction=0.5 * fs, critical_slip=rng.uniform(0.2, 1.0, nf)),
+                     rng.uniform(0.5, 2.0, nf))
+    state = law.friction_law.initial_state(nf)
+    if kind == "slip-weakening":
+        state = state + rng.uniform(0.0, 1.2, (nf, 1))
     lam = rng.standard_normal((nf, d))
     q = 0.5 * rng.standard_normal((nf, d))
     s = q.copy()
     area = rng.uniform(0.5, 1.5, nf)
-    C, dl, dq, st = linearise_contact(law, lam, q, s, n, area)
+    C, dl, dq, st = linearise_contact(law, lam, q, s, n, area, state)
     assert len(set(st.tolist())) >= 2
-    eps = 1e-7
+    if kind == "slip-weakening":
+        nt = np.linalg.norm(s - np.einsum("fi,fi->f", s, n)[:, None] * n, axis=1)
+        weak = (st == SLIP) & (state[:, 0] + nt < law.friction_law.critical_slip)
+        assert weak.sum() >= 3 and ((st == SLIP) & ~weak).sum() >= 1
+    eps = 1e-6
     for k in range(d):
         e = np.zeros((nf, d))
         e[:, k] = eps
-        Cl = linearise_contact(law, lam + e, q, s, n, area)[0]
-        Cq = linearise_contact(law, lam, q + e, s + e, n, area)[0]
-        assert np.allclose((Cl - C) / eps, dl[:, :, k], atol=1e-5)
-        assert np.allclose((Cq - C) / eps, dq[:, :, k], atol=1e-5)
+        Cl = (linearise_contact(law, lam + e, q, s, n, area, state)[0]
+              - linearise_contact(law, lam - e, q, s, n, area, state)[0]) / (2 * eps)
+        Cq = (linearise_contact(law, lam, q + e, s + e, n, area, state)[0]
+              - linearise_contact(law, lam, q - e, s - e, n, area, state)[0]) / (2 * eps)
+        assert np.allclose(Cl, dl[:, :, k], atol=1e-6)
+        assert np.allclose(Cq, dq[:, :, k], atol=1e-6)
+
+
+def test_slip_weakening_radius_and_state():
+    """F(δ) falls linearly from F_s to F_d over D_c and stays; the state accumulates the slip path;
+    a law without state keeps none; coefficients out of range are errors naming the key."""
+    law = SlipWeakening(np.array([0.6, 0.6, 0.6]), np.array([0.4, 0.4, 0.4]), np.array([1e-3, 1e-3, 1e-3]))
+    F, dF = law.coefficient(np.array([0.0, 5e-4, 2e-3]))
+    assert np.allclose(F, [0.6, 0.5, 0.4]) and np.allclose(dF, [-200.0, -200.0, 0.0])
+    st = law.advance(law.initial_state(3), np.array([[3e-4, 4e-4, 0.0], [0.0, 0.0, 0.0], [1e-3, 0.0, 0.0]]), 1.0)
+    assert np.allclose(st[:, 0], [5e-4, 0.0, 1e-3])
+    r = law.radius(np.array([1e6, -1.0, 2e6]), np.zeros((3, 3)), st, 1.0)
+    assert np.allclose(r.value, [0.5e6, 0.0, 0.8e6]) and np.allclose(r.d_normal, [0.5, 0.0, 0.4])
+    assert set(law.state_fields(st)) == {"slip_path", "friction_coefficient"}
+    c = Coulomb(np.array([0.5]))
+    assert c.initial_state(4).shape == (4, 0) and c.state_fields(c.initial_state(4)) == {}
+    with pytest.raises(InputError, match="contact.dynamic_friction"):
+        SlipWeakening(np.array([0.5]), np.array([0.6]), np.array([1e-3]))
+    with pytest.raises(InputError, match="contact.critical_slip"):
+        friction_law("slip-weakening", 1, friction=0.6, dynamic_friction=0.4, critical_slip=0.0)
+    with pytest.raises(InputError, match="contact.dynamic_friction"):
+        friction_law("slip-weakening", 1, friction=0.6, critical_slip=1e-3)
+    with pytest.raises(InputError, match="contact.law"):
+        friction_law("rate-and-state", 1)
 
 
 @pytest.mark.parametrize("dim,kind", [(2, "voronoi"), (3, "perturbed"), (3, "simplicial")])

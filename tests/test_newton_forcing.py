@@ -277,7 +277,7 @@ def test_flow_kinds_without_terms_are_not_weighted_beyond_the_floor():
     po = model.mech.free.size + model.mech.n_c * model.dim
     kind = model._flow_kind
     # the weight of a flow row is 1/(s_i √Σ_k): recover each kind's √Σ_k from it
-    root = 1.0 / (lin.row_scale[po:] * ctx[7][model.flow_free])
+    root = 1.0 / (lin.row_scale[po:] * ctx.pressure_scale[model.flow_free])
     assert np.any(lin.residual[po:][kind == 0] != 0)                # the well's source
     n0 = np.count_nonzero(kind == 0)
     cell_root = np.median(root[kind == 0])

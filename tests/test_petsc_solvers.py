@@ -46,7 +46,7 @@ def poro_system():
         st, _info = P.step(st, 10.0)
     ctx, x0 = P.step_context(st, 10.0, st.time + 10.0)
     lin = P._linearise(x0, ctx)
-    s = ctx[7]
+    s = ctx.pressure_scale
     return (sp.csr_matrix(lin.jacobian.tocsr()), -lin.residual, P.mech.free.size, P.dim, P.n_ff * P.dim,
             P.mech.condensation(), P.mech.rigid_modes(), 1.0 / s[P.flow_free], lin.counts)
 

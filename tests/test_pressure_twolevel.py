@@ -24,7 +24,7 @@ def _pressure_block(overrides=()):
     A, Gup, Gpu, F = J[:nu, :nu], J[:nu, po:], J[po:, :nu], J[po:, po:]
     lump = np.asarray((Gpu @ sp.diags(1.0 / A.diagonal())).multiply(Gup.T).sum(axis=1)).ravel()
     k = model._flow_kind
-    return sp.csr_matrix(F - sp.diags(lump)), 1.0 / ctx[7][model.flow_free], np.isin(k, (0, 3)), np.isin(k, (2, 3, 4))
+    return sp.csr_matrix(F - sp.diags(lump)), 1.0 / ctx.pressure_scale[model.flow_free], np.isin(k, (0, 3)), np.isin(k, (2, 3, 4))
 
 
 def _cg_iterations(M, prec, b):

@@ -52,7 +52,7 @@ def _spec(**tables):
     ({"model": "flow", "flow": {"initial_pressure": 0.0}}, "flow.initial_pressure", "only applies to a transient"),
     ({"model": "flow", "time": {"end": 1.0, "step": 0.5, "output_every": 2, "output_times": [1.0]}},
      "time.output_times", "not both"),
-    ({"contact": {"law": "tresca", "friction": 0.5}}, "contact.friction", "applies to law = 'coulomb' only"),
+    ({"contact": {"law": "tresca", "friction": 0.5}}, "contact.friction", "applies to law = 'coulomb' or 'slip-weakening' only"),
     ({"mechanics": {"body_force": "exact"}}, "mechanics.body_force", '"exact" needs an [exact] solution'),
     ({"fractures": [{"name": "F", "vertices": [[0, 0], [1, 1]]}, {"name": "F", "vertices": [[0, 1], [1, 0]]}]},
      "fractures.F.name", "'F' is given twice"),

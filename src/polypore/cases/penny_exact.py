@@ -84,7 +84,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-OPEN, STICK, SLIP = 0, 1, 2     # models.contact's state codes
+from ..models.contact import OPEN, SLIP, STICK
+
 RIM = 0.9                       # "away from the rim": r ≤ RIM · a (the outer 10 % of the radius left out)
 
 

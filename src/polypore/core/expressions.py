@@ -75,13 +75,13 @@ class Expression:
         """Values at the given points, broadcast together; an InputError naming the field if
         any value is not finite (the first such point is quoted)."""
         env, shape = _environment(x, y, z, t, extra)
-        out = np.broadcast_to(self._evaluate(env), shape)
+        out = np.broadcast_to(self.evaluate_in(env), shape)
         bad = ~np.isfinite(out)
         if bad.any():
-            raise InputError(self.field, self._not_finite(out, bad, env, shape))
+            raise InputError(self.field, self.not_finite_message(out, bad, env, shape))
         return out.copy() if shape else float(out)
 
-    def _evaluate(self, env) -> np.ndarray:
+    def evaluate_in(self, env) -> np.ndarray:
         # errors ignored: where(x > 0, 1/x, 0) divides by zero in the branch it discards, so
         # only the result is checked; float64 operands make 1/0 inf rather than an exception
         try:
@@ -90,7 +90,7 @@ class Expression:
         except (ArithmeticError, TypeError, ValueError) as exc:
             raise InputError(self.field, f"expression {self.text!r} cannot be evaluated: {exc}") from None
 
-    def _not_finite(self, out, bad, env, shape) -> str:
+    def not_finite_message(self, out, bad, env, shape) -> str:
         what = (f"{'inf' if np.isinf(out[bad]).any() else 'nan'} (a division by zero, an overflow, or a function "
                 "outside its domain such as log or sqrt of a negative number); allowed: finite values")
         if not self.names and not shape:
@@ -279,7 +279,7 @@ def parse(value, field: str, params: Mapping[str, float] | None = None, extra: t
     # a probe evaluation reports what the checks above cannot see (operand types) now, not mid-run;
     # only a constant's value is known here, so only a constant is checked for finiteness
     env, _ = _environment(*([np.zeros(1)] * 4), {k: np.zeros(1) for k in extra})
-    probe = expr._evaluate(env)
+    probe = expr.evaluate_in(env)
     if not used and not np.all(np.isfinite(probe)):
-        raise InputError(field, expr._not_finite(probe, ~np.isfinite(probe), env, ()))
+        raise InputError(field, expr.not_finite_message(probe, ~np.isfinite(probe), env, ()))
     return expr

@@ -51,6 +51,9 @@ FRACTURES = {
     "aperture": "hydraulic aperture d_f of the face (m)",
     "p_f": "fracture pressure (Pa); poromechanics with [initial_state]: relative to the hydrostatic pressure",
     "first_slip": "time the face first slipped (s); NaN: not yet",
+    "slip_path": "slip-weakening: the slip path δ, the length of the tangential jump's increments summed over the "
+                 "steps (m)",
+    "friction_coefficient": "slip-weakening: the friction coefficient F(δ) at the face's slip path (–)",
     "trace_plus": "matrix pressure on the face's + side (Pa)",
     "trace_minus": "matrix pressure on the face's − side (Pa)",
     "exchange": "matrix → fracture flux through both sides per unit face area (m/s)",

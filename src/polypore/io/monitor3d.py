@@ -33,7 +33,8 @@ from pathlib import Path
 
 import numpy as np
 
-OPEN, STICK, SLIP = 0, 1, 2
+from ..models.contact import OPEN, SLIP, STICK
+
 STATE_CODES = {"open": OPEN, "stick": STICK, "slip": SLIP}
 STEEP_DIP = 30.0      # degrees: faults at least this steep are drawn against elevation z
 AREA_ONSET = 0.01     # "onset by area": the first time this fraction of a fault's area slips

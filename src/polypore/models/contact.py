@@ -6,9 +6,10 @@ tangential slip s (= [[u]]_τ in a static run, the increment Δ[[u]]_τ in a tim
     y_n = λ_n + β q_n,      y_τ = λ_τ + β s_τ,
     λ_n = [y_n]_{R+},       λ_τ = [y_τ]_r,
 
-with r = 0 (frictionless), r = g (Tresca) or r = F [y_n]_{R+} (Coulomb). **Choice:** the
-Coulomb radius uses [y_n]_+ rather than λ_n (the two agree at a solution, since then
-λ_n = [y_n]_+); it keeps r ≥ 0 at every iterate (Hüeber, Stadler, Wohlmuth 2008).
+with the radius r from the friction law (`friction.py`): 0 (frictionless), g (Tresca),
+F [y_n]_{R+} (Coulomb) or F(δ) [y_n]_{R+} (slip-weakening, δ the slip path). **Choice:** the
+radius uses [y_n]_+ rather than λ_n (the two agree at a solution, since then λ_n = [y_n]_+);
+it keeps r ≥ 0 at every iterate (Hüeber, Stadler, Wohlmuth 2008).
 The residual returned is C = (|σ|/β)(λ − P(y)) so that the rows of closed/stuck faces
 read −|σ| q, the transpose of the equilibrium coupling |σ| λ·[[v]]: the Jacobian is
 symmetric when every face sticks.
@@ -25,8 +26,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import InputError
+from .friction import FrictionLaw, Radius
 
-LAWS = ("frictionless", "tresca", "coulomb")
+# the projection's states, the codes every module reads (outputs, plots, exact solutions)
 OPEN, STICK, SLIP = 0, 1, 2
 # Stick/slip decision: a face whose trial tangential traction |y_τ| lies within this relative band
 # below the friction bound r (on the cone, to round-off) is classified SLIP. At the start of a step
@@ -43,30 +45,27 @@ PATCH_RATIO = 0.2
 
 @dataclass(frozen=True, eq=False)
 class ContactLaw:
-    """Contact law on the fracture faces.
+    """Contact law on the contact patches: a friction law and the augmentation β.
 
     Attributes
     ----------
-    kind : "frictionless", "tresca" or "coulomb"
-    friction : (n_ff,) Coulomb coefficient F ≥ 0 per fracture face (dimensionless)
-    threshold : (n_ff,) Tresca threshold g ≥ 0 per face, Pa
-    beta : (n_ff,) β_σ > 0 in Pa/m (scheme.md §4: β = c (2μ + λ_L)/h_σ)
+    friction_law : the radius of the friction disc and its state (`friction.py`)
+    beta : (n,) β_σ > 0 in Pa/m (scheme.md §4: β = c (2μ + λ_L)/h_σ)
     """
 
-    kind: str
-    friction: np.ndarray
-    threshold: np.ndarray
+    friction_law: FrictionLaw
     beta: np.ndarray
 
     def __post_init__(self):
-        if self.kind not in LAWS:
-            raise InputError("contact.law", f"unknown contact law {self.kind!r}; allowed: {', '.join(LAWS)}")
-        if np.any(~np.isfinite(self.friction)) or np.any(self.friction < 0):
-            raise InputError("contact.friction", f"must be finite and ≥ 0, got {np.nanmin(self.friction)!r}")
-        if np.any(~np.isfinite(self.threshold)) or np.any(self.threshold < 0):
-            raise InputError("contact.threshold", f"must be finite and ≥ 0 (Pa), got {np.nanmin(self.threshold)!r}")
+        if not isinstance(self.friction_law, FrictionLaw):
+            raise TypeError(f"friction_law must be a FrictionLaw, got {type(self.friction_law).__name__}")
         if np.any(~(self.beta > 0)):
             raise InputError("contact.beta", "must be positive")
+
+    @property
+    def kind(self) -> str:
+        """The friction law's name ("frictionless", "tresca", "coulomb", "slip-weakening")."""
+        return self.friction_law.name
 
 
 def _normal_tangential(v, n):
@@ -74,19 +73,21 @@ def _normal_tangential(v, n):
     return vn, v - vn[:, None] * n
 
 
-def contact_state(law: ContactLaw, lam, q, s, n):
+def contact_state(law: ContactLaw, lam, q, s, n, state=None, dt: float = 0.0):
     """(n_ff,) state per face (OPEN / STICK / SLIP) at the current iterate."""
-    return linearise_contact(law, lam, q, s, n, np.ones(len(n)))[3]
+    return linearise_contact(law, lam, q, s, n, np.ones(len(n)), state, dt)[3]
 
 
 def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.ndarray, n: np.ndarray,
-                      area: np.ndarray):
+                      area: np.ndarray, state: np.ndarray | None = None, dt: float = 0.0):
     """Residual and generalised derivatives of the projection equations, batched over faces.
 
     Parameters
     ----------
     lam, q, s, n : (n_ff, d) multiplier (Pa), mean jump (m), slip (m), unit normal n⁺
     area : (n_ff,) |σ| (m² in 3D, m in 2D)
+    state : (n_ff, k) the friction law's state before the step (None: its initial state)
+    dt : the time step, s (rate laws; 0 in a static solve)
 
     Returns
     -------
@@ -107,19 +108,14 @@ def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.nda
     y_n = lam_n + beta * q_n
     y_t = lam_t + beta[:, None] * s_t
     closed = y_n > 0
-    if law.kind == "frictionless":
-        r = np.zeros(nf)
-    elif law.kind == "tresca":
-        r = law.threshold.astype(float)
-    else:
-        r = law.friction * np.maximum(y_n, 0.0)
+    fl = law.friction_law
+    rad: Radius = fl.radius(y_n, s_t, fl.initial_state(nf) if state is None else state, dt)
+    r = rad.value
     ny = np.linalg.norm(y_t, axis=1)
     inside = (ny <= r) & (r > 0)                                  # the projection's value
     stick = (ny < (1.0 - STICK_SLIP_TIE) * r) & (r > 0)           # state and derivative (ties: slip)
     slip = ~stick
-    state = np.where(~closed, OPEN, np.where(stick, STICK, SLIP)).astype(np.int8)
-    if law.kind == "tresca":
-        state = np.where(closed, state, OPEN).astype(np.int8)
+    codes = np.where(~closed, OPEN, np.where(stick, STICK, SLIP)).astype(np.int8)
 
     # P(y) and its derivative with respect to (λ, q): normal part
     Pn = np.where(closed, y_n, 0.0)
@@ -134,11 +130,15 @@ def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.nda
     M = np.einsum("fij,fjk->fik", M, Pt)                          # ∂P_τ/∂y_τ composed with the tangent projector
     dPt_dlam = M.copy()
     dPt_dq = beta[:, None, None] * M
-    if law.kind == "coulomb":
-        # slip: r = F y_n depends on λ_n and q_n where the face is closed
-        g = (slip & closed)[:, None] * (law.friction[:, None] * yhat)   # (nf, d) = ∂P_τ/∂r · ∂r/∂y_n direction
+    if np.any(rad.d_normal):
+        # slip: r depends on y_n = λ_n + β q_n (Coulomb: r = F [y_n]_+, ∂r/∂y_n = F where closed)
+        g = slip[:, None] * (rad.d_normal[:, None] * yhat)   # (nf, d) = ∂P_τ/∂r · ∂r/∂y_n
         dPt_dlam += np.einsum("fi,fj->fij", g, n)
         dPt_dq += beta[:, None, None] * np.einsum("fi,fj->fij", g, n)
+    if rad.d_slip is not None:
+        # slip: r depends on the step's slip s_τ = P_τ s (slip-weakening), and ∂s/∂q = I; d_slip
+        # lies in the tangent plane, so composing with P_τ changes nothing
+        dPt_dq += slip[:, None, None] * np.einsum("fi,fj->fij", yhat, rad.d_slip)
     P = Pn[:, None] * n + Pt_val
     dP_dlam = np.einsum("fi,fj->fij", n, dPn_dlam) + dPt_dlam
     dP_dq = np.einsum("fi,fj->fij", n, dPn_dq) + dPt_dq
@@ -146,4 +146,4 @@ def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.nda
     C = w[:, None] * (lam - P)
     dC_dlam = w[:, None, None] * (I[None] - dP_dlam)
     dC_dq = -w[:, None, None] * dP_dq
-    return C, dC_dlam, dC_dq, state
+    return C, dC_dlam, dC_dq, codes

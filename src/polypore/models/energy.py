@@ -161,8 +161,9 @@ def step_energy(model, old, new) -> EnergyTerms:
         lam = mech.patch_values(new.lam)
         ln = np.einsum("fi,fi->f", lam, n)
         lt = lam - ln[:, None] * n
-        law = mech.law
-        r = {"coulomb": law.friction * np.maximum(ln, 0.0), "tresca": law.threshold}.get(law.kind, np.zeros(nc))
+        # the friction law's radius at the converged traction and the step's slip, from its state
+        # before the step: the radius the step's Newton iteration used
+        r = mech.law.friction_law.radius(ln, dqt, model.friction_state(old), dt).value
         slip = np.linalg.norm(dqt, axis=1)
         fric = float(np.sum(area * r * slip))
         cn = float(np.sum(area * ln * dqn))
@@ -201,7 +202,7 @@ def step_energy(model, old, new) -> EnergyTerms:
     eb = on_b[cf_.values]
     edge_out = np.bincount(fe.values, weights=Ff, minlength=pe.size) if nf else np.zeros(pe.size)
     bedges = np.zeros(pe.size, bool)
-    for edges in model.flow._edge_parts.values():
+    for edges in model.flow.edge_parts.values():
         bedges[edges] = True
     bnd_w = -dt * float(Fm[eb] @ p[dofs.slot[eb]] + edge_out[bedges] @ pe[bedges])
     ap = np.abs(p)
@@ -213,8 +214,8 @@ def step_energy(model, old, new) -> EnergyTerms:
     # product with p_f is counted as work done on the fluid: W_dil = −Σ|σ| tan ψ p_f Δ|[[u − u⁰]]_τ|
     dil_w = 0.0
     if nf and np.any(model.tan_psi > 0):
-        rel1 = model._tangential_slip(model.jumps(new.u))[0]
-        rel0 = model._tangential_slip(model.jumps(old.u))[0]
+        rel1 = model.tangential_slip(model.jumps(new.u))[0]
+        rel0 = model.tangential_slip(model.jumps(old.u))[0]
         dil = mech.face_area * model.tan_psi * (rel1 - rel0) * pf
         dil_w = -float(dil.sum())
         scale += float(np.abs(dil).sum())

@@ -294,7 +294,7 @@ class FlowModel:
         if self._distributed or context() is None:
             return
         self._distributed = True
-        ids, _, _ = self._dirichlet(0.0)
+        ids, _, _ = self.dirichlet(0.0)
         free = np.ones(self.assembler.dofs.n, bool)
         free[ids] = False
         distribute(self.solver, self.mesh, lambda part: self.dof_owner(part)[free])
@@ -402,9 +402,9 @@ class FlowModel:
             edge_owner[edges] = len(econds)
             econds.append((name, cond))
         self._edge_conditions = [(name, cond, np.flatnonzero(edge_owner == i)) for i, (name, cond) in enumerate(econds)]
-        self._edge_parts = on_part
+        self.edge_parts = on_part
 
-    def _dirichlet(self, t: float):
+    def dirichlet(self, t: float):
         """Dirichlet dof ids and values at time t, and the Neumann face fluxes (n_faces,)."""
         g = self.mesh.geometry
         dofs = self.assembler.dofs
@@ -458,7 +458,7 @@ class FlowModel:
             raise InputError("flow.conductivity_law", "must return non-negative finite values (m³)")
         system = self.assembler.system(s_cell, area * lam / eta, cond / eta, s_frac)
         t1 = time.perf_counter()
-        ids, _, _ = self._dirichlet(0.0)
+        ids, _, _ = self.dirichlet(0.0)
         free = np.ones(self.assembler.dofs.n, bool)
         free[ids] = False
         A = system.A.tocsr()
@@ -476,7 +476,7 @@ class FlowModel:
             system, fidx, A_ff, A_fd, timings = self._system(dt, aperture)
             timings = dict(timings)
             t0 = time.perf_counter()
-            ids, vals, qflux = self._dirichlet(t)
+            ids, vals, qflux = self.dirichlet(t)
             asm = self.assembler
             b = asm.rhs(system, cell_rhs, frac_rhs, qflux)
             x = np.zeros(asm.dofs.n)
@@ -507,7 +507,7 @@ class FlowModel:
         np.add.at(face_out, cf.values, F)
         bflux, fbflux = {}, {}
         for name, faces in mesh.boundary.items():
-            fb = float(edge_out[self._edge_parts[name]].sum()) if name in self._edge_parts else 0.0
+            fb = float(edge_out[self.edge_parts[name]].sum()) if name in self.edge_parts else 0.0
             fbflux[name] = fb
             bflux[name] = float(face_out[faces].sum()) + fb
         return FlowSolution(float(t), p_cell, face, x[d.trace], x[d.frac], x[d.edge], np.array(aperture, float),

@@ -33,7 +33,8 @@ from ..solvers.block_jacobian import BlockJacobian, FreeSplit, block_diag_csr
 from ..solvers.distributed import OwnedRows, SplitRowBlock, local_rows, min_owner, owned_layout, register_layout
 from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
-from .contact import LAWS, OPEN, PATCH_RATIO, SLIP, STICK, ContactLaw, linearise_contact
+from .contact import OPEN, PATCH_RATIO, SLIP, STICK, ContactLaw, linearise_contact
+from .friction import friction_law
 
 log = logging.getLogger("polypore")
 
@@ -61,7 +62,10 @@ class TractionBC:
 
 @dataclass(frozen=True)
 class ContactSpec:
-    """Contact data per fracture face: law, F (–), Tresca g (Pa), β scale c (–, scheme.md §4)."""
+    """Contact data per fracture face: law, F (–; the static F_s of slip-weakening), Tresca g (Pa),
+    β scale c (–, scheme.md §4), and the other coefficients of the friction law by their case-file
+    keys (``friction.LAW_KEYS``; slip-weakening: ``dynamic_friction`` (–), ``critical_slip`` (m)),
+    (n_ff,) arrays or scalars."""
 
     law: str = "coulomb"
     friction: np.ndarray | float = 0.0
@@ -70,6 +74,7 @@ class ContactSpec:
     initial: str = "closed"   # first Newton iterate: "closed" (bonded, always solvable) or "open" (λ = 0)
     # smallest |P| / A_K of a multiplier patch (discretisation/contact_patches.py); 0: one per face
     patch_ratio: float = PATCH_RATIO
+    coefficients: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -156,6 +161,7 @@ class MechanicsState:
     residual: float = 0.0
     history: list = field(default_factory=list)
     seconds: dict = field(default_factory=dict)
+    friction: np.ndarray | None = None      # (n_c, k) the friction law's state after this solve
 
 
 def jacobian_pattern(blocks, n: int, layout) -> BlockPattern:
@@ -441,8 +447,6 @@ class ContactMechanics:
 
     def _setup_contact(self):
         c = self.data.contact
-        if c.law not in LAWS:
-            raise InputError("contact.law", f"unknown contact law {c.law!r}; allowed: {', '.join(LAWS)}")
         P = self.patches
         kp = P.plus_cell
         if not c.beta_scale > 0:
@@ -450,11 +454,15 @@ class ContactMechanics:
         beta = c.beta_scale * (2 * self.mu[kp] + self.lam[kp]) / P.diameter
         # per patch: the area-weighted means of the faces' coefficients (equal on a fracture's
         # faces unless given as fields)
-        F = np.broadcast_to(np.asarray(c.friction, float), (self.n_ff,))
-        gthr = np.broadcast_to(np.asarray(c.threshold, float), (self.n_ff,))
-        if not P.identity:
-            F, gthr = P.mean @ F, P.mean @ gthr
-        self.law = ContactLaw(c.law, np.array(F, float), np.array(gthr, float), beta)
+        def per_patch(v):
+            if v is None:
+                return None
+            v = np.broadcast_to(np.asarray(v, float), (self.n_ff,))
+            return np.array(v if P.identity else P.mean @ v, float)
+
+        law = friction_law(c.law, self.n_c, friction=per_patch(c.friction), threshold=per_patch(c.threshold),
+                           **{k: per_patch(v) for k, v in c.coefficients.items()})
+        self.law = ContactLaw(law, beta)
 
     def _free_block(self):
         """A as coo (this rank's rows on N ranks), the free numbers of its rows and columns, and
@@ -485,7 +493,7 @@ class ContactMechanics:
 
         Blocks, in order: A (free rows and columns; on N ranks only this rank's rows, from the rows
         of A it keeps), Bᵀ (u rows, λ̃ columns), C_u (contact rows, u columns: one d × d entry
-        per jump entry whose slot is free, selected by ``self._cu``'s mask), C_λ (d × d per patch).
+        per jump entry whose slot is free, selected by ``self.contact_jump_entries``'s mask), C_λ (d × d per patch).
 
         Parameters
         ----------
@@ -525,14 +533,14 @@ class ContactMechanics:
     def _cu_entries(self, J):
         """(rows, cols, keep): the C_u contributions, row (patch σ, i), col (free number of slot a,
         component j), for every entry (σ, a) of the patch jump ``J`` (coo) and i, j < d; keep: the
-        column is free. Sets ``self._cu`` (the jump entries and the mask, for the values)."""
+        column is free. Sets ``self.contact_jump_entries`` (the jump entries and the mask, for the values)."""
         d = self.dim
         rows = J.row.astype(np.int64)[:, None, None] * d + np.arange(d)[None, :, None]
         colsd = J.col.astype(np.int64)[:, None, None] * d + np.arange(d)[None, None, :]
         rows, colsd = np.broadcast_arrays(rows, colsd)
         fcol = self.free_index[colsd]
         keep = fcol >= 0
-        self._cu = (J.row, J.data, keep)
+        self.contact_jump_entries = (J.row, J.data, keep)
         return rows, fcol, keep
 
     def _setup_blocks(self, J):
@@ -610,7 +618,7 @@ class ContactMechanics:
         return F.ravel()
 
     # ---- Newton ----------------------------------------------------------------------------
-    def _split(self, x, udir):
+    def split(self, x, udir):
         """(u (n_dofs,), λ (n_c, d) per patch, Pa) of a Newton vector."""
         nfree = self.free.size
         u = udir.copy()
@@ -632,25 +640,26 @@ class ContactMechanics:
         """(n_ff, ...) the value of each face's patch."""
         return patch_values if self.patches.identity else self.patches.expand(patch_values)
 
-    def linearise(self, x, F, udir, q_old=None) -> Linearisation:
-        """Residual and Jacobian at x; ``q_old`` (n_c, d) the patch jumps of the previous step."""
+    def linearise(self, x, F, udir, q_old=None, friction=None) -> Linearisation:
+        """Residual and Jacobian at x; ``q_old`` (n_c, d) the patch jumps of the previous step,
+        ``friction`` (n_c, k) the friction law's state before it (None: its initial state)."""
         d, nf = self.dim, self.n_c
-        u, lam = self._split(x, udir)
+        u, lam = self.split(x, udir)
         q = (self.Jcv @ u).reshape(nf, d)
         s = q if q_old is None else q - q_old
-        C, dC_dlam, dC_dq, state = linearise_contact(self.law, lam, q, s, self.c_normal, self.c_area)
+        C, dC_dlam, dC_dq, state = linearise_contact(self.law, lam, q, s, self.c_normal, self.c_area, friction)
         Au, Bl = self.A @ u, self.Bcv.T @ lam.ravel()          # A: a RowBlock on N ranks (gathered)
         Ru = Au + Bl - F
         Ru_f = Ru[self.free]
         b = self.law.beta
         if self.blockwise:
-            jrow, jval, keep = self._cu
+            jrow, jval, keep = self.contact_jump_entries
             Jac = self.jacobian_by_blocks((dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep],
                                           dC_dlam * (b * b)[:, None, None])
         else:
             if self.pattern is None:
                 self._setup_pattern(self.c_jump.tocoo())
-            jrow, jval, keep = self._cu
+            jrow, jval, keep = self.contact_jump_entries
             pat = self.pattern
             cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
             Jac = pat.fill([self._fixed_vals, pat.take(2, cu), pat.take(3, dC_dlam * (b * b)[:, None, None])])
@@ -672,8 +681,12 @@ class ContactMechanics:
                              row_scale=w)
 
     def solve(self, t: float = 0.0, initial: MechanicsState | None = None, q_old: np.ndarray | None = None,
-              verbose: bool = True) -> MechanicsState:
+              verbose: bool = True, friction: np.ndarray | None = None) -> MechanicsState:
         """Solve the static problem at time t (loads evaluated at t).
+
+        A load step of a quasi-static sequence passes the previous step's patch jumps ``q_old``
+        (n_c, d) and the friction law's state after it ``friction`` (n_c, k): the slip is then the
+        step's increment. The returned state carries the law's state after this step.
 
         Starts from ``initial`` or, by default, from u = Dirichlet values and every fracture face
         closed and stuck (λ = tiny compression), whose linearisation is the bonded problem; with
@@ -697,13 +710,20 @@ class ContactMechanics:
             dl = np.linalg.norm(dx[nfree:]) / max(np.linalg.norm(x[nfree:] + dx[nfree:]), 1e-300) if self.n_ff else 0
             return float(max(du, dl))
 
-        res = semismooth_newton(lambda x: self.linearise(x, F, udir, q_old), x0, self.solver, incr, self.newton,
-                                verbose)
-        u, lam = self._split(res.x, udir)
+        res = semismooth_newton(lambda x: self.linearise(x, F, udir, q_old, friction), x0, self.solver, incr,
+                                self.newton, verbose)
+        u, lam = self.split(res.x, udir)
+        fl = self.law.friction_law
+        law_state = fl.initial_state(self.n_c) if friction is None else friction
+        if self.n_c:
+            q = (self.Jcv @ u).reshape(self.n_c, self.dim)
+            s = q if q_old is None else q - q_old
+            s = s - np.einsum("fi,fi->f", s, self.c_normal)[:, None] * self.c_normal
+            law_state = fl.advance(law_state, s, 0.0)
         return MechanicsState(u.reshape(-1, self.dim), self.face_values(lam), self.face_values(res.active_set), t,
                               res.iterations, res.residual, res.history,
                               {"loads": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear,
-                               "total": time.perf_counter() - t0})
+                               "total": time.perf_counter() - t0}, law_state)
 
     def closed_start(self, F: np.ndarray) -> np.ndarray:
         """(n_c d,) the first iterate's λ̃ = λ/β: every patch closed and stuck under a tiny

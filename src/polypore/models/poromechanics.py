@@ -125,6 +125,8 @@ class PoroState:
         pressures (index ``dofs.n + K``), Pa
     aperture : (n_ff,) d_f = d_f^c − [[u]]_n, m
     state : (n_ff,) int8 contact state (OPEN / STICK / SLIP)
+    friction : (n_c, k) the friction law's state per contact patch (`friction.py`; k = 0 for
+        Coulomb and Tresca, the slip path for slip-weakening); None: the law's initial state
     flux_aperture : (n_ff,) aperture at which the step that produced this state evaluated
         C_f and Λ_f (d_f^{n−1}; the state's own aperture for an initial state), m: the fluxes
         built with it are the conservative ones
@@ -141,10 +143,48 @@ class PoroState:
     state: np.ndarray
     flux_aperture: np.ndarray | None = None
     stabilisation_flux: np.ndarray | None = None
+    friction: np.ndarray | None = None
 
     def __post_init__(self):
         if self.flux_aperture is None:
             self.flux_aperture = self.aperture
+
+
+@dataclass(eq=False)
+class StepContext:
+    """What is fixed during the Newton loop of one step t^{n−1} → t^n (scaled Newton unknowns).
+
+    Attributes
+    ----------
+    loads : (n_dofs,) mechanical load vector at t^n, N
+    u_dir, p_dir : (n_dofs,), (n_flow,) Dirichlet values at t^n (zero elsewhere), m and Pa
+    flow_matrix, flow_rhs : the step's flow system Δt-scaled (:meth:`Poromechanics.flow_step_system`)
+    u_old : (n_dofs,) displacements at t^{n−1}, m;  q_old : (n_c, d) patch jumps at t^{n−1}, m
+    pressure_scale : (n_flow,) s, pressures in Newton's unknowns are p / s
+    jacobian_step : the step's fixed Jacobian data (a pattern's data array, or blocks (G_up, G_pu
+        data, F) with block solvers)
+    abs_flow : |flow_matrix|;  terms_old : (n_flow,) magnitudes of the t^{n−1} terms per flow row
+    slip_old : (n_ff,) regularised |[[u^{n−1} − u⁰]]_τ| with dilatancy, else None
+    implicit_old : the implicit conductivities' reference (coefficients and Δt), else None
+    friction_state : (n_c, k) the friction law's state at t^{n−1} (`friction.py`)
+    dt : Δt, s
+    """
+
+    loads: np.ndarray
+    u_dir: np.ndarray
+    flow_matrix: object
+    flow_rhs: np.ndarray
+    p_dir: np.ndarray
+    u_old: np.ndarray
+    q_old: np.ndarray
+    pressure_scale: np.ndarray
+    jacobian_step: object
+    abs_flow: object
+    terms_old: np.ndarray
+    slip_old: np.ndarray | None
+    implicit_old: tuple | None
+    friction_state: np.ndarray
+    dt: float
 
 
 @dataclass
@@ -367,7 +407,7 @@ class Poromechanics:
         return p[K] - p[L]
 
     def _setup_flow_dofs(self):
-        ids, _, _ = self.flow._dirichlet(0.0)        # the Dirichlet set does not depend on t
+        ids, _, _ = self.flow.dirichlet(0.0)        # the Dirichlet set does not depend on t
         fixed = np.zeros(self.n_flow, bool)
         fixed[ids] = True
         self.flow_fixed = np.flatnonzero(fixed)
@@ -446,7 +486,7 @@ class Poromechanics:
             self._setup_blocks((gr[kg], gc[kg], G.data[kg]), (tr[kt], tc[kt], T.data[kt]), (drow, dcol), imp_rc)
             return
         blocks, values = mech.jacobian_blocks(mech.c_jump.tocoo())   # A, Bᵀ, C_u, C_λ (per patch)
-        self._cu = mech._cu
+        self._cu = mech.contact_jump_entries
         ar, ac = self._af_rc
         blocks += [(gr[kg], po + gc[kg]), (po + tr[kt], tc[kt]), (po + ar, po + ac), (po + drow, dcol),
                    (po + imp_rc[0], imp_rc[1])]
@@ -507,7 +547,7 @@ class Poromechanics:
         np.cumsum(np.bincount(ar, minlength=npf), out=f_ptr[1:])
         self._blocks = {"up": (up, g_up[2], g_up[1].astype(it)), "pu": (pu, pu.take(0, g_pu[2]), g_pu[0].astype(it)),
                         "pp": (f_ptr, ac)}
-        self._cu = self.mech._cu
+        self._cu = self.mech.contact_jump_entries
 
     def release_solver(self) -> None:
         """Free the linear solver's matrices and preconditioner set-ups (PETSc's, where it has any)
@@ -631,7 +671,7 @@ class Poromechanics:
         A_dt = pat.fill([pat.take(0, Af.data * dt), pat.take(1, self._stab_vals())])
         if self.flow_layout is not None:
             A_dt = RowBlock(A_dt, self.flow_layout)
-        ids, vals, qflux = self.flow._dirichlet(t)
+        ids, vals, qflux = self.flow.dirichlet(t)
         hm, hf = self.flow.sources(t)
         d = self.dofs
         r = np.zeros(self.n_flow)
@@ -659,7 +699,7 @@ class Poromechanics:
             F = F + mech.Bcv.T @ mech.patch_values(self.lam0).ravel()
         return F
 
-    def _tangential_slip(self, q: np.ndarray):
+    def tangential_slip(self, q: np.ndarray):
         """(|[[u − u⁰]]_ε,τ| (n_ff,), its derivative direction (n_ff, d)) from the jumps q (n_ff, d), m.
 
         |x|_ε = √(|x|² + ε²) − ε with ε = 10⁻³ d_f^c: the plain norm's derivative x/|x| is a
@@ -692,7 +732,7 @@ class Poromechanics:
         d_f = self.closed_aperture - np.einsum("fi,fi->f", q, n)
         grad = -n.copy()
         if np.any(self.tan_psi > 0):
-            rel, e = self._tangential_slip(q)
+            rel, e = self.tangential_slip(q)
             d_f = d_f + self.tan_psi * rel
             grad += self.tan_psi[:, None] * e
         return d_f, grad
@@ -717,7 +757,7 @@ class Poromechanics:
             res = semismooth_newton(lambda x: mech.linearise(x, F, udir, None), x0, mech.solver,
                                     lambda dx, x: float(np.linalg.norm(dx) / max(np.linalg.norm(x + dx), 1e-300)),
                                     NewtonOptions(**{**self.newton.__dict__, "label": "initial equilibrium"}), verbose)
-            u, lam = mech._split(res.x, udir)
+            u, lam = mech.split(res.x, udir)
             lam, state = mech.face_values(lam), mech.face_values(res.active_set)
             u = u.reshape(-1, d)
             # the contact Jacobian's pattern, and the contact solver's PETSc matrices and AMG, are
@@ -783,10 +823,13 @@ class Poromechanics:
 
     def _linearise(self, x, ctx) -> Linearisation:
         mech, d, nf = self.mech, self.dim, self.n_ff
-        F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old), rel_old, imp_old = ctx
+        F, udir, A_dt, r_dt, p_dir = ctx.loads, ctx.u_dir, ctx.flow_matrix, ctx.flow_rhs, ctx.p_dir
+        u_old, q_old, s, j_step = ctx.u_old, ctx.q_old, ctx.pressure_scale, ctx.jacobian_step
+        abs_A, terms_old, rel_old, imp_old = ctx.abs_flow, ctx.terms_old, ctx.slip_old, ctx.implicit_old
         u, lam, p = self._split(x, udir, p_dir, s)
         qc = (mech.Jcv @ u).reshape(mech.n_c, d)                     # patch-mean jumps (contact rows)
-        C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, qc, qc - q_old, mech.c_normal, mech.c_area)
+        C, dC_dlam, dC_dq, state = linearise_contact(mech.law, lam, qc, qc - q_old, mech.c_normal, mech.c_area,
+                                                     ctx.friction_state, ctx.dt)
         imp_vals = imp_dpp = None
         if imp_old is not None:
             A_dt, abs_A, imp_vals, imp_dpp = self._implicit_terms(u, p, s, A_dt, imp_old)
@@ -803,7 +846,7 @@ class Poromechanics:
         dil_vals = np.zeros(0)
         if nf and np.any(self.tan_psi > 0):
             # dilatancy acts per face, on the faces' (patch) jumps; the old slip is the step's
-            rel, that = self._tangential_slip(self.jumps(u.reshape(-1, d)))
+            rel, that = self.tangential_slip(self.jumps(u.reshape(-1, d)))
             w = mech.face_area * self.tan_psi
             Rf[self.dofs.frac] += w * (rel - rel_old)
             terms[self.dofs.frac] += w * rel
@@ -894,10 +937,21 @@ class Poromechanics:
         sf = s[self.flow_free]
         return A, abs_A, pu, dA[self._af_keep] * sf[ar] * sf[ac]
 
-    def step_context(self, old: PoroState, dt: float, t: float):
-        """Everything fixed during the Newton loop of the step old → t, and the first iterate x0
-        (the old state with the new Dirichlet data). ``self._linearise(x, ctx)`` is the
-        residual and Jacobian at x."""
+    def friction_state(self, st: PoroState) -> np.ndarray:
+        """(n_c, k) the friction law's state of ``st`` (the law's initial state if it has none)."""
+        fl = self.mech.law.friction_law
+        return fl.initial_state(self.mech.n_c) if st.friction is None else st.friction
+
+    def friction_fields(self, st: PoroState) -> dict[str, np.ndarray]:
+        """The friction law's state of ``st`` as named (n_ff,) face values (outputs; empty for a law
+        without state)."""
+        fl = self.mech.law.friction_law
+        return {k: self.mech.face_values(v) for k, v in fl.state_fields(self.friction_state(st)).items()}
+
+    def step_context(self, old: PoroState, dt: float, t: float) -> tuple[StepContext, np.ndarray]:
+        """Everything fixed during the Newton loop of the step old → t (:class:`StepContext`), and
+        the first iterate x0 (the old state with the new Dirichlet data). ``self._linearise(x,
+        ctx)`` is the residual and Jacobian at x."""
         mech, d = self.mech, self.dim
         F = self.load_vector(t)
         udir = mech.dirichlet_vector(t)
@@ -918,7 +972,7 @@ class Poromechanics:
         terms_old = abs_A @ np.abs(old.p) + np.abs(r_dt) + self._abs_GT @ np.abs(u_old)
         rel_old = None                          # |[[u^{n−1} − u⁰]]_τ|_ε per face, with dilatancy only
         if self.n_ff and np.any(self.tan_psi > 0):
-            rel_old = self._tangential_slip(self.jumps(old.u))[0]
+            rel_old = self.tangential_slip(self.jumps(old.u))[0]
             terms_old[self.dofs.frac] += mech.face_area * self.tan_psi * rel_old
         # the Jacobian's data without the contact blocks (2, 3, 7, added per iteration by _linearise):
         # the fixed blocks and the step's coupling and flow blocks; no block of 2–3 shares an entry
@@ -943,7 +997,8 @@ class Poromechanics:
         del af_vals
         # the implicit conductivities' reference: the coefficients A_dt was built with, and Δt
         imp_old = (*self.conductivities(old.aperture), dt) if self._implicit is not None else None
-        ctx = (F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, (abs_A, terms_old), rel_old, imp_old)
+        ctx = StepContext(F, udir, A_dt, r_dt, p_dir, u_old, q_old, s, j_step, abs_A, terms_old, rel_old, imp_old,
+                          self.friction_state(old), dt)
         x0 = np.concatenate([u_old[mech.free], (mech.patch_values(old.lam) / mech.law.beta[:, None]).ravel(),
                              old.p[self.flow_free] / sf])
         return ctx, x0
@@ -967,7 +1022,7 @@ class Poromechanics:
             # a short step followed by a long one: the short one's increment is typically a load's
             # instant (undrained) response, not a rate (Terzaghi: Δt = 1e-6 T_c, then 1e-2 T_c)
             return None
-        mech, s = self.mech, ctx[7]
+        mech, s = self.mech, ctx.pressure_scale
         u = old.u.ravel() + r * du
         lam = mech.patch_values(old.lam) + r * dlam
         p = old.p + r * dp
@@ -987,7 +1042,7 @@ class Poromechanics:
         t = old.time + dt if t_new is None else float(t_new)
         mech, d = self.mech, self.dim
         ctx, x0 = self.step_context(old, dt, t)
-        udir, p_dir, s = ctx[1], ctx[4], ctx[7]
+        udir, p_dir, s = ctx.u_dir, ctx.p_dir, ctx.pressure_scale
         nfree, nl = mech.free.size, mech.n_c * d
         t1 = time.perf_counter()
         k0 = len(getattr(self.solver, "iterations", []))
@@ -1025,8 +1080,13 @@ class Poromechanics:
         sflux = self.stabilisation_weights * self.stabilisation_jumps(p - old.p) / dt
         ap = self.aperture_of(u)
         flux_ap = np.maximum(ap, self.closed_aperture) if self._implicit is not None else old.aperture
+        # the friction law's state after the step, from the patches' step slip (tangential)
+        q_new = (mech.Jcv @ u.ravel()).reshape(mech.n_c, d)
+        dq = q_new - ctx.q_old
+        dq -= np.einsum("fi,fi->f", dq, mech.c_normal)[:, None] * mech.c_normal
+        friction = mech.law.friction_law.advance(ctx.friction_state, dq, dt)
         new = PoroState(t, u, mech.face_values(lam), p, ap, np.asarray(mech.face_values(res.active_set), np.int8),
-                        flux_ap, sflux)
+                        flux_ap, sflux, friction)
         self._last_settled = old.state is not None and np.array_equal(new.state, old.state)
         if self.predictor != "none":
             self._increments = [*self._increments[-1:], (new, (u - old.u).ravel(), lam - mech.patch_values(old.lam),
@@ -1066,7 +1126,7 @@ class Poromechanics:
         edge_out = np.bincount(asm.fcells.face_edges.values, weights=Ff, minlength=net.edge_nodes.shape[0])
         bflux, fbflux = {}, {}
         for name, faces in mesh.boundary.items():
-            parts = self.flow._edge_parts
+            parts = self.flow.edge_parts
             fb = float(edge_out[parts[name]].sum()) if name in parts else 0.0
             fbflux[name] = fb
             bflux[name] = float(face_out[faces].sum()) + fb

@@ -137,7 +137,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             write_fracture_vtu(stage / f"fractures_{k_out:04d}.vtu", fm, cell_data={
                 "jump": fq["jump"], "jump_n": fq["jump_n"], "jump_t": fq["jump_t"], "lambda": st.lam,
                 "lambda_n": fq["lambda_n"], "lambda_t": fq["lambda_t"], "state": fq["state"].astype(np.int32),
-                "aperture": fq["aperture"], "p_f": fq["p_f"],
+                "aperture": fq["aperture"], "p_f": fq["p_f"], **model.friction_fields(st),
                 # every step's onset (the recorder saw this time already): replots draw the same
                 "first_slip": recorder.onset.copy()})
             pvd.extend([(st.time, f"bulk_{k_out:04d}.vtu", 0), (st.time, f"fractures_{k_out:04d}.vtu", 1)])
@@ -235,8 +235,19 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                 output(k_out[0], rec.index, st)
                 k_out[0] += 1
 
-        state, _ = march(schedule, state, step, on_step, accept=accept if limit is not None else None,
-                         max_rejections=schedule.growth_cuts)
+        try:
+            state, _ = march(schedule, state, step, on_step, accept=accept if limit is not None else None,
+                             max_rejections=schedule.growth_cuts)
+        except RunError as exc:
+            if model.mech.law.kind == "slip-weakening" and "Newton" in str(exc):
+                # a weakening fault can lose every quasi-static equilibrium near the last one: the
+                # slipping patch runs away (an earthquake), which no smaller step resolves
+                raise RunError(f"{exc}. With slip-weakening friction this is typically a frictional instability: "
+                               "the slipping patch outgrew its nucleation length (2a_c = 1.158 μ/((1 − ν) W), "
+                               "W = (friction − dynamic_friction) σ_n′ / critical_slip) and the fault has no "
+                               "quasi-static equilibrium near the last state (docs/contact.md, \"Slip-weakening\")"
+                               ) from None
+            raise
         bubble = bubble_slip(model, state, net)
         if bubble["faces"]:
             w = bubble["largest"]
@@ -295,7 +306,9 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
                        "linear_iterations_failed": int(sum(sum(f.get("linear_iterations", ())) for s in steps
                                                            for f in s.get("failed_attempts", ())))},
         }
-        write_legend(stage, summary, *POROMECHANICS_ARRAYS)     # README.txt and summary's "legend"
+        # README.txt and summary's "legend"; the friction law's state arrays with a law that has one
+        bulk_arrays, fracture_arrays = POROMECHANICS_ARRAYS
+        write_legend(stage, summary, bulk_arrays, fracture_arrays + tuple(model.friction_fields(state)))
         write_json(stage / "summary.json", summary)
     return summary
 

@@ -46,6 +46,7 @@ from ..core.expressions import parse
 from ..mesh import FracturedMesh
 from ..models.fracture_geometry import tip_distance
 from ..models.materials import check_elastic, lame
+from ..models.friction import LAW_KEYS
 from ..models.mechanics import ContactSpec, DisplacementBC, MechanicsData, TractionBC
 from ..solvers import linear as _linear
 from ..solvers.linear import LinearSolver
@@ -249,7 +250,8 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
                                                                 params)
     disp, trac = _boundary(sec, mesh, params, exact)
     c = spec.contact or Contact()
-    friction, threshold = _contact_values(c, fm, params, spec.fractures)
+    coeffs = _contact_values(c, fm, params, spec.fractures)
+    friction, threshold = coeffs["friction"], coeffs["threshold"]
     if isinstance(exact, SingleCrack):
         if np.ptp(friction) > 0:
             raise InputError("contact.friction", "the single-crack analytic solution needs one friction coefficient")
@@ -261,7 +263,8 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
                            forcing=s.forcing, forcing_max=s.forcing_max, label="contact Newton")
     data = MechanicsData(mu=mu, lam=lam, displacement=tuple(disp), traction=tuple(trac), body_force=body_f,
                          matrix_pressure=pm_f, biot=sec.biot, fracture_pressure=pf_f, initial_stress=s0_f,
-                         contact=ContactSpec(c.law, friction, threshold, c.beta, c.initial, c.patch_ratio),
+                         contact=ContactSpec(c.law, friction, threshold, c.beta, c.initial, c.patch_ratio,
+                                             {k: v for k, v in coeffs.items() if k not in ("friction", "threshold")}),
                          two_sided=sec.bubbles == "two-sided", bubble_side=sec.bubble_side, stabilisation=stab,
                          bubble_stabilisation=sec.bubble_stabilisation,
                          nodal_stabilisation=nodal,
@@ -413,10 +416,11 @@ def _boundary(sec: Mechanics, mesh, params, exact):
 
 
 def _contact_values(c: Contact, fm: FracturedMesh, params, fractures=()):
-    """(friction, threshold) per fracture face (n_ff,), checked finite and ≥ 0.
+    """{key: (n_ff,) values per fracture face} of the contact law's coefficients (``LAW_KEYS``),
+    checked finite and ≥ 0; those of another law zero.
 
-    ``fractures`` are the case's ``[[fractures]]`` tables: a fracture's own ``friction`` or
-    ``threshold`` replaces the ``[contact]`` value on its faces.
+    ``fractures`` are the case's ``[[fractures]]`` tables: a fracture's own value (``friction``,
+    ``threshold``, ...) replaces the ``[contact]`` one on its faces.
     """
     mesh, net = fm.mesh, fm.network
     D = tip_distance(fm)
@@ -433,7 +437,7 @@ def _contact_values(c: Contact, fm: FracturedMesh, params, fractures=()):
                              f"(min {np.nanmin(out) if out.size else 0:g})")
         return out
 
-    def values(key, law, what):
+    def values(key, what):
         out = np.zeros(net.n_faces)
         given = getattr(c, key)
         missing = np.ones(net.n_faces, bool)
@@ -445,16 +449,15 @@ def _contact_values(c: Contact, fm: FracturedMesh, params, fractures=()):
                 missing &= ~sel
         if given is not None:
             out[missing] = face_values(key, given, f"contact.{key}", missing)
-        elif c.law == law and missing.any():
+        elif c.law in LAW_KEYS[key] and missing.any():
             # without fracture faces there is no contact: the case needs no [contact] table
             rest = sorted({net.names[j] for j in np.unique(net.fracture[missing])})
-            raise InputError(f"contact.{key}", f"is required for the {law.capitalize()} law {what}, or give "
+            raise InputError(f"contact.{key}", f"is required for the {c.law} law {what}, or give "
                              f"`{key}` in the [[fractures]] block of {', '.join(rest)}")
         return out
 
-    return (values("friction", "coulomb", "(a number ≥ 0 or an expression of x, y, z and D, the distance to the "
-                   "fracture's nearest tip)"),
-            values("threshold", "tresca", "(Pa, a number ≥ 0 or an expression of x, y, z and D)"))
+    expr = "a number ≥ 0 or an expression of x, y, z and D, the distance to the fracture's nearest tip"
+    return {key: values(key, f"({expr})") for key in LAW_KEYS}
 
 
 def _penny_table(ex, fm: FracturedMesh, params, E: float, nu: float) -> PennyCrack:

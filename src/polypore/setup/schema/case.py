@@ -19,6 +19,7 @@ from ...cases.exact import PROFILES, SOLUTIONS
 from ...cases.flow_exact import NAMES as FLOW_SOLUTIONS
 from ...cases.reference import REFERENCES
 from ...core.expressions import CONSTANTS, FUNCTIONS, VARIABLES
+from ...models.friction import LAW_KEYS
 from ...solvers.linear import BACKENDS
 from ...solvers.newton import FORCING, PREDICTORS
 from .flow import Flow
@@ -389,10 +390,10 @@ class Case(Table):
                     if physics_ == "flow":
                         fail("is contact data; this is a flow case (no mechanics): remove it",
                              key=("fractures", i, key))
-                    need = "coulomb" if key == "friction" else "tresca"
-                    if law != need:
-                        fail(f"applies to contact.law = {need!r} only; this case has law = {law!r}",
-                             key=("fractures", i, key))
+                    need = LAW_KEYS[key]
+                    if law not in need:
+                        fail(f"applies to contact.law = {' or '.join(map(repr, need))} only; this case has "
+                             f"law = {law!r}", key=("fractures", i, key))
 
     def _exact_values(self):
         if self.exact is not None:

@@ -206,14 +206,16 @@ class Mesh(Table):
 
 
 # keys of [[fractures]] that give the fracture's own contact and flow data (every kind of fracture)
-FRACTURE_DATA = {"friction": "contact", "threshold": "contact", "aperture": "flow", "normal_permeability": "flow",
+FRACTURE_DATA = {"friction": "contact", "threshold": "contact", "dynamic_friction": "contact",
+                 "critical_slip": "contact", "aperture": "flow", "normal_permeability": "flow",
                  "fracture_conductivity": "flow"}
 
 
 class Fracture(Table):
     """``[[fractures]]``: a 2D polyline or 3D planar polygon, or in 3D a regular polygon, a physical
     group of a mesh file or a fault of a corner-point grid; optionally with its own contact and
-    flow data (``friction``, ``threshold``, ``aperture``, ``normal_permeability``,
+    flow data (``friction``, ``threshold``, ``dynamic_friction``, ``critical_slip``,
+    ``aperture``, ``normal_permeability``,
     ``fracture_conductivity``), which replace the ``[contact]`` / ``[flow]`` values on its faces."""
 
     name: Text = Field(description="name of the fracture (results and --set address it by name)")
@@ -232,6 +234,10 @@ class Fracture(Table):
                                   "(expression of x, y, z, D), instead of contact.friction")
     threshold: Expr | None = Field(None, description="tresca: threshold g ≥ 0 (Pa) on this fracture, instead of "
                                    "contact.threshold")
+    dynamic_friction: Expr | None = Field(None, description="slip-weakening: dynamic friction F_d on this fracture, "
+                                          "instead of contact.dynamic_friction")
+    critical_slip: Expr | None = Field(None, description="slip-weakening: critical slip D_c (m) on this fracture, "
+                                       "instead of contact.critical_slip")
     aperture: Expr | None = Field(None, description="flow: d_f (m) > 0 on this fracture (expression of x, y, z, t, "
                                   "D, L), instead of flow.aperture")
     normal_permeability: Expr | None = Field(None, description="flow: K_fn (m²) > 0 on this fracture (x, y, z, "

@@ -13,7 +13,8 @@ from typing import Any, Annotated
 from pydantic import Field, PlainValidator, WithJsonSchema, model_validator
 from pydantic_core import PydanticCustomError
 
-from ...models.contact import LAWS, PATCH_RATIO
+from ...models.contact import PATCH_RATIO
+from ...models.friction import LAW_KEYS, LAWS
 from .types import (Expr, ExprTensor, ExprVector, ExprVectorOrExact, Positive, Table, Text, choice, fail, finite,
                     is_number, number, show)
 
@@ -237,9 +238,14 @@ class Contact(Table):
     """``[contact]``: the contact law on the fractures (not needed without fractures)."""
 
     law: choice(*LAWS) = Field("coulomb", description="contact law")
-    friction: Expr | None = Field(None, description="coulomb: friction coefficient F ≥ 0, an expression of x, "
+    friction: Expr | None = Field(None, description="coulomb, slip-weakening: (static) friction coefficient "
+                                  "F ≥ 0, an expression of x, "
                                   "y, z and D (distance to the fracture's nearest tip, m)")
     threshold: Expr | None = Field(None, description="tresca: threshold g ≥ 0 (Pa), same variables")
+    dynamic_friction: Expr | None = Field(None, description="slip-weakening: dynamic friction coefficient F_d, "
+                                          "0 ≤ F_d ≤ friction, reached after critical_slip of slip; same variables")
+    critical_slip: Expr | None = Field(None, description="slip-weakening: slip D_c > 0 (m) over which the friction "
+                                       "falls linearly from friction to dynamic_friction; same variables")
     beta: Positive = Field(1.0, description="c in β = c (2μ + λ)/h of the augmented multipliers")
     initial: choice("closed", "open") = Field("closed", description="first Newton iterate: closed (bonded) or "
                                               "open (λ = 0)")
@@ -250,7 +256,8 @@ class Contact(Table):
 
     @model_validator(mode="after")
     def _law_keys(self):
-        for key, law in (("friction", "coulomb"), ("threshold", "tresca")):
-            if key in self.given() and self.law != law:
-                fail(f"applies to law = {law!r} only; this case has law = {self.law!r}", key=key)
+        for key, laws in LAW_KEYS.items():
+            if key in self.given() and self.law not in laws:
+                fail(f"applies to law = {' or '.join(map(repr, laws))} only; this case has law = {self.law!r}",
+                     key=key)
         return self
