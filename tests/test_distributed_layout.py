@@ -6,11 +6,11 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from polypore.mesh.partition import cell_graph, partition_cells
+from polypore.parallel.partition import cell_graph, partition_cells
 from polypore.setup.casefile import load_case
 from polypore.setup.meshing import build_fractured_mesh
 from polypore.setup.poromechanics import poro_setup
-from polypore.solvers.distributed import DofLayout, min_owner
+from polypore.parallel.layout import DofLayout, min_owner
 
 
 class FakeComm:
@@ -152,7 +152,7 @@ def test_time_line_names_the_parts_of_a_direct_solve(tmp_path, cli):
     import json
 
     from conftest import STATIC_2D
-    from polypore.solvers.timing import split_labels
+    from polypore.core.timing import split_labels
 
     case = tmp_path / "s.toml"
     case.write_text(STATIC_2D)
@@ -187,3 +187,18 @@ def test_block_pattern_put_scatters_a_block_of_distinct_entries_as_add_does():
     assert np.array_equal(got, ref)
     with pytest.raises(ValueError, match="block 0"):
         pat.put(pat.zeros(), 0, values[1])
+
+
+def test_cell_ownership_owned_and_ghost_cells():
+    """A partition's owned cells and their one-face ghost layer; serially every cell is owned."""
+    from polypore.mesh.generators.cartesian import cartesian_mesh
+    from polypore.parallel.ownership import CellOwnership, cell_ownership
+
+    mesh = cartesian_mesh([np.linspace(0, 4, 5), np.linspace(0, 1, 2)])      # a row of 4 cells
+    x = mesh.geometry.cell_centroid[:, 0]
+    own = CellOwnership.of(mesh, (x > 2).astype(int), rank=1, size=2)
+    assert np.allclose(sorted(x[own.owned]), [2.5, 3.5]) and np.allclose(x[own.ghost], [1.5])
+    s = cell_ownership(mesh)
+    assert s.size == 1 and s.owned.all() and not s.ghost.any()
+    with pytest.raises(ValueError, match="4 cells"):
+        CellOwnership.of(mesh, np.zeros(3, int), 0, 1)

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import polypore
 
-ORDER = ["core", "mesh", "discretisation", "assembly", "solvers", "models", "io", "cases", "setup", "runs", "cli"]
+ORDER = ["core", "mesh", "parallel", "discretisation", "assembly", "solvers", "models", "io", "cases", "setup", "runs", "cli"]
 CASE_LAYER = ("cases", "setup", "runs")
 ROOT = Path(polypore.__file__).parent
 

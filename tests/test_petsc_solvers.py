@@ -257,7 +257,7 @@ def test_time_split_counts_each_second_once(structure):
     import time
 
     from polypore.solvers.petsc_fieldsplit import PetscBlockPoroSolver
-    from polypore.solvers.timing import SPLIT
+    from polypore.core.timing import SPLIT
 
     J, r, nu, d, nl, cond, B, pns, _ = poro_system()
     s = PetscBlockPoroSolver(nu, d, nl, cond, near_nullspace=B, pressure_nullspace=pns,

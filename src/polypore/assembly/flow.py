@@ -144,7 +144,7 @@ class FlowAssembler:
     # -- sparsity -------------------------------------------------------------------------
     def _contributions(self, full: bool):
         """Row/col index arrays of every contribution, in the order values are produced."""
-        dofs, net = self.dofs, self.network
+        dofs = self.dofs
         rows, cols = [], []
         nd = dofs.n
         for b in self.hfv.blocks:

@@ -84,3 +84,47 @@ def csr_rows(M, a: int, b: int, data=None):
 def row_block_data(M, a: int, b: int) -> np.ndarray:
     """The stored values of rows a:b of a csr matrix (a view)."""
     return M.data[int(M.indptr[a]):int(M.indptr[b])]
+
+
+def kept_indptr(keep: np.ndarray, indptr: np.ndarray, rows: np.ndarray, dtype) -> np.ndarray:
+    """CSR row pointer of the entries ``keep`` (nnz,) bool of the given rows, in their order."""
+    c = np.zeros(keep.size + 1, np.int64)
+    np.cumsum(keep, out=c[1:])
+    out = np.zeros(rows.size + 1, dtype)
+    np.cumsum(c[indptr[rows + 1]] - c[indptr[rows]], out=out[1:])
+    return out
+
+
+def split_free(L, row_global: np.ndarray, free: np.ndarray, all_rows: bool = False):
+    """(ff, rest) of rows of a square matrix: ff the entries in free rows and free columns (columns
+    in the free numbering), rest the others (full numbering, every row of L).
+
+    Parameters
+    ----------
+    L : (r, n) csr, sorted indices, rows of an (n, n) matrix;  row_global : (r,) their numbers
+    free : (m,) increasing;  all_rows : ff keeps every row of L (those not free empty), else only
+        the free rows, in order (L the whole matrix: ff is its free block)
+    """
+    it = L.indices.dtype
+    index = np.full(L.shape[1], -1, it)
+    index[free] = np.arange(free.size, dtype=it)
+    row_free = index[row_global] >= 0
+    keep = np.repeat(row_free, np.diff(L.indptr)) & (index[L.indices] >= 0)
+    ff_rows = np.arange(L.shape[0]) if all_rows else np.flatnonzero(row_free)
+    ff = sp.csr_matrix((L.data[keep], index[L.indices[keep]], kept_indptr(keep, L.indptr, ff_rows, it)),
+                       shape=(ff_rows.size, free.size))
+    drop = ~keep
+    del keep
+    rest = sp.csr_matrix((L.data[drop], L.indices[drop], kept_indptr(drop, L.indptr, np.arange(L.shape[0]), it)),
+                         shape=L.shape)
+    return ff, rest
+
+
+def join_free(ff, rest, free: np.ndarray, ff_rows: np.ndarray) -> sp.coo_matrix:
+    """The rows :func:`split_free` split, as coo in the full numbering: ff's entries (its row i
+    is row ``ff_rows[i]``, its columns free numbers) and then rest's. Coordinates, not a sum: the
+    stored zeros (contact couplings) stay in the pattern."""
+    f, r = ff.tocoo(), rest.tocoo()
+    return sp.coo_matrix((np.concatenate([f.data, r.data]), (np.concatenate([ff_rows[f.row], r.row]),
+                                                            np.concatenate([free[f.col], r.col]))),
+                         shape=rest.shape)

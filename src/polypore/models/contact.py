@@ -99,9 +99,9 @@ def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.nda
     """
     nf, d = lam.shape
     beta = law.beta
-    I = np.eye(d)
+    eye = np.eye(d)
     nn = np.einsum("fi,fj->fij", n, n)
-    Pt = I[None] - nn
+    Pt = eye[None] - nn
     lam_n, lam_t = _normal_tangential(lam, n)
     q_n = np.einsum("fi,fi->f", q, n)
     _, s_t = _normal_tangential(s, n)
@@ -144,6 +144,6 @@ def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.nda
     dP_dq = np.einsum("fi,fj->fij", n, dPn_dq) + dPt_dq
     w = area / beta
     C = w[:, None] * (lam - P)
-    dC_dlam = w[:, None, None] * (I[None] - dP_dlam)
+    dC_dlam = w[:, None, None] * (eye[None] - dP_dlam)
     dC_dq = -w[:, None, None] * dP_dq
     return C, dC_dlam, dC_dq, codes

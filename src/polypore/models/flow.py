@@ -30,9 +30,9 @@ import numpy as np
 from ..assembly.flow import FlowAssembler, FlowSystem
 from ..core.errors import InputError
 from ..discretisation.hfv import CELL_POINTS
-from ..solvers.distributed import context, distribute, min_owner
+from ..parallel.layout import context, distribute, min_owner
 from ..solvers.linear import LinearSolver
-from ..solvers.timing import SPLIT
+from ..core.timing import SPLIT
 
 
 def cubic_law(aperture: np.ndarray) -> np.ndarray:
@@ -271,7 +271,7 @@ class FlowModel:
         self._cache = None
         self._distributed = False
 
-    # -- distributed runs (solvers/distributed.py) ---------------------------------------------
+    # -- distributed runs (parallel/layout.py) ---------------------------------------------
     def dof_owner(self, part: np.ndarray) -> np.ndarray:
         """(n_dofs,) owner rank of every HFV unknown (face, trace, fracture, edge pressures) for the
         cell ranks ``part``: the lowest rank among the cells of a face; a fracture face's traces
@@ -430,7 +430,8 @@ class FlowModel:
         """Cell and fracture source volumes per second: |K| h_m (n_cells,), |σ| h_f (n_ff,), m³/s."""
         g = self.mesh.geometry
         hm = evaluate(self.cell_source, g.cell_centroid, t, "flow.cell_source") * g.cell_volume
-        hf = evaluate(self.fracture_source, self._ff_points(), t, "flow.fracture_source") * g.face_area[self.network.faces]
+        hf = evaluate(self.fracture_source, self._ff_points(), t, "flow.fracture_source") \
+            * g.face_area[self.network.faces]
         return hm, hf
 
     # -- solves -------------------------------------------------------------------------------

@@ -16,7 +16,7 @@ import numpy as np
 import scipy.linalg as la
 import scipy.sparse.linalg as spla
 
-from ..solvers.distributed import local_rows
+from ..parallel.layout import local_rows
 
 __all__ = ["inf_sup_constant"]
 

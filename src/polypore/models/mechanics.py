@@ -30,7 +30,7 @@ from ..discretisation.contact_patches import contact_patches
 from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
 from ..solvers.block_jacobian import BlockJacobian, FreeSplit, block_diag_csr
-from ..solvers.distributed import OwnedRows, SplitRowBlock, local_rows, min_owner, owned_layout, register_layout
+from ..parallel.layout import OwnedRows, SplitRowBlock, local_rows, min_owner, owned_layout, register_layout
 from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import OPEN, PATCH_RATIO, SLIP, STICK, ContactLaw, linearise_contact
@@ -303,7 +303,7 @@ class ContactMechanics:
         self._face_means = {}          # traction boundaries: face-mean operators (order 2: face quadratures)
         self._setup_dirichlet()
         self._setup_contact()
-        # under mpiexec (solvers/distributed.py; None serially): the layout of the Newton unknowns,
+        # under mpiexec (parallel/layout.py; None serially): the layout of the Newton unknowns,
         # whose rows this rank assembles, and of all displacement dofs, whose rows of A it keeps
         self.layout = owned_layout(mesh, self.dof_owner)
         self.dof_layout = owned_layout(mesh, lambda part: np.repeat(self.slot_owner(part), d))
@@ -372,7 +372,7 @@ class ContactMechanics:
             self._rigid.flags.writeable = False
         return self._rigid
 
-    # ---- distributed runs (solvers/distributed.py) --------------------------------------------
+    # ---- distributed runs (parallel/layout.py) --------------------------------------------
     def slot_owner(self, part: np.ndarray) -> np.ndarray:
         """(n_slots,) owner rank of every displacement slot for the cell ranks ``part`` (n_cells,):
         the lowest rank among the cells holding it (a bubble: its cell)."""
@@ -407,7 +407,7 @@ class ContactMechanics:
         d = self.dim
         comp_mask = np.zeros((self.space.n_point_slots, d), bool)
         self._dir_groups = []
-        for k, bc in enumerate(self.data.displacement):
+        for bc in self.data.displacement:
             faces = self._boundary_faces(bc.boundary, f"mechanics.boundary.{bc.boundary}")
             comps = tuple(int(c) for c in bc.components)
             if not comps or any(c < 0 or c >= d for c in comps):

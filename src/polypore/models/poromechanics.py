@@ -64,7 +64,7 @@ from ..core.errors import InputError, RunError
 from ..core.memory import int32_indices, trim_heap
 from ..mesh import FracturedMesh
 from ..solvers.block_jacobian import BlockJacobian
-from ..solvers.distributed import OwnedRows, RowBlock, local_rows, owned_layout, register_layout
+from ..parallel.layout import OwnedRows, RowBlock, local_rows, owned_layout, register_layout
 from ..solvers.linear import LinearSolver, release_solver
 from ..solvers.newton import PREDICTORS, Linearisation, NewtonOptions, row_weights, semismooth_newton
 from ..solvers.petsc import shared
@@ -516,7 +516,8 @@ class Poromechanics:
             # pressures) and the fracture subsystem its smoother solves exactly (fracture cells,
             # fracture edges, traces); kinds as in block_counts
             k = self._flow_kind
-            self.solver = BlockPoroSolver(nfree, d, nl, self.mech.condensation(), near_nullspace=self.mech.rigid_modes(),
+            self.solver = BlockPoroSolver(nfree, d, nl, self.mech.condensation(),
+                                          near_nullspace=self.mech.rigid_modes(),
                                           mechanics="direct" if backend == "block-direct" else "amg",
                                           pressure_groups=(np.isin(k, (0, 3)), np.isin(k, (2, 3, 4))))
         elif backend == "block-petsc":
@@ -655,7 +656,7 @@ class Poromechanics:
         -------
         A_dt : csr (n_flow, n_flow), Δt A_f(d_f^{n−1}) + S_δ with storage |K|/M and |σ| d_f^{n−1} c_f
             and the pressure-jump stabilisation S_δ (:meth:`stabilisation_matrix`), m³/Pa; on N
-            ranks a :class:`~polypore.solvers.distributed.RowBlock` of this rank's rows
+            ranks a :class:`~polypore.parallel.layout.RowBlock` of this rank's rows
         r_dt : (n_flow,) Δt × (sources + old storage − Neumann outflow) + S_δ p^{n−1}, m³ (coupling
             excluded)
         p_dir : (n_flow,) Dirichlet pressures at t on fixed dofs, 0 elsewhere, Pa
@@ -835,7 +836,7 @@ class Poromechanics:
             A_dt, abs_A, imp_vals, imp_dpp = self._implicit_terms(u, p, s, A_dt, imp_old)
         cs = self._coupling_sign
         # on N ranks A, G, Gᵀ, A_dt and the |·| are RowBlocks: each product is this rank's rows and
-        # an Allgatherv, the serial values bit for bit (solvers/distributed.py)
+        # an Allgatherv, the serial values bit for bit (parallel/layout.py)
         Gp = self.G @ p
         Au, Bl = mech.A @ u, mech.Bcv.T @ lam.ravel()
         Ru = Au + Bl - cs * Gp - F
@@ -990,7 +991,8 @@ class Poromechanics:
         else:
             g_vals = (self._g_u[0] * sf[self._g_u[1]], self._g_p[0] * sf[self._g_p[1]])   # pressures scaled by s
             pat = self.pattern
-            j_step = (pat.put if self._a_distinct else pat.add)(pat.zeros(), 0, pat.take(0, mech.elastic_block_values()))
+            fill = pat.put if self._a_distinct else pat.add
+            j_step = fill(pat.zeros(), 0, pat.take(0, mech.elastic_block_values()))
             pat.add(j_step, 1, self._bt_vals)
             j_step = pat.add(pat.add(pat.add(j_step, 4, -cs * g_vals[0]), 5, -g_vals[1]), 6, -af_vals)
             del g_vals

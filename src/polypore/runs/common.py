@@ -9,8 +9,8 @@ import time
 
 from ..mesh.cornerpoint import fault_report, fault_table
 from ..setup.meshing import cornerpoint_of
-from ..solvers.distributed import context
-from ..solvers.timing import SPLIT, summary_split
+from ..parallel.layout import context
+from ..core.timing import SPLIT, summary_split
 
 log = logging.getLogger("polypore")
 

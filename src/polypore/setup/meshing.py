@@ -178,7 +178,7 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
     (mpiexec) rank 0 builds it and broadcasts it to the other ranks (docs/parallel.md: the mesh
     stays serial).
     """
-    from ..solvers.distributed import context
+    from ..parallel.layout import context
 
     ctx = context()
     with live.phase("meshing"):
@@ -275,7 +275,7 @@ def _file_mesh(case: CaseFile, spec, t0: float) -> FracturedMesh:
     path = Path(spec.mesh.file)
     if not path.is_absolute():
         path = Path(spec.base_dir or ".") / path
-    from ..solvers.distributed import context
+    from ..parallel.layout import context
 
     mesh, groups_found = read_msh(str(path), isolate=context() is None)   # no fork under MPI
     dim = mesh.dim

@@ -68,7 +68,7 @@ def resolve_linear(linear: str, fm, order: int, pardiso: bool) -> tuple[str, str
     """
     if linear != "auto":
         return linear, "given"
-    from ..solvers.distributed import context
+    from ..parallel.layout import context
 
     direct = "pardiso" if pardiso else "superlu"
     if context() is not None:

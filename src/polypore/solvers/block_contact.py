@@ -34,7 +34,8 @@ replaced by the fixed-stress-type diagonal approximation
 which keeps F's sparsity (the full product couples every pair of cells sharing a node and
 costs 10× more to factorise) and does not depend on the contact state: it is set up once per time
 step (with ``mechanics = "direct"`` PARDISO when installed, otherwise the two-level preconditioner
-of :mod:`.pressure_twolevel`) and reused by every Newton iteration. S is solved by AMG (``mechanics = "amg"``, 3D with the line
+of :mod:`.pressure_twolevel`) and reused by every Newton iteration. S is solved by AMG
+(``mechanics = "amg"``, 3D with the line
 smoother of :mod:`.line_smoother`) or factorised (``"direct"``), set up again only when it changed.
 """
 
@@ -56,7 +57,7 @@ from ..core.errors import RunError
 from ..core.interruptible import interruptible
 from .block_jacobian import BlockJacobian, BorrowedValues, Unchanged, abs_matvec, block_diag_csr
 from .linear import repeatable_random
-from .timing import SPLIT
+from ..core.timing import SPLIT
 
 log = logging.getLogger("polypore")
 

@@ -21,7 +21,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.sparse as sp
 
-from ..core.csr import csr_rows, row_block_data
+from ..core.csr import csr_rows, join_free, row_block_data, split_free
 
 _ABS_CHUNK = 2_000_000          # nonzeros per chunk of |M| |x| (no copy of M's values)
 
@@ -35,7 +35,7 @@ def abs_matvec(M, ax: np.ndarray) -> np.ndarray:
     ip = M.indptr
     edges = np.searchsorted(ip, np.arange(0, ip[-1] + _ABS_CHUNK, _ABS_CHUNK), side="right") - 1
     edges = np.unique(np.r_[0, np.clip(edges, 0, M.shape[0]), M.shape[0]])
-    for a, b in zip(edges[:-1], edges[1:]):
+    for a, b in zip(edges[:-1], edges[1:], strict=True):
         out[a:b] = csr_rows(M, a, b, np.abs(row_block_data(M, a, b))) @ ax
     return out
 
@@ -161,50 +161,6 @@ class Unchanged:
 
     def restore(self) -> None:
         pass
-
-
-def split_free(L, row_global: np.ndarray, free: np.ndarray, all_rows: bool = False):
-    """(ff, rest) of rows of a square matrix: ff the entries in free rows and free columns (columns
-    in the free numbering), rest the others (full numbering, every row of L).
-
-    Parameters
-    ----------
-    L : (r, n) csr, sorted indices, rows of an (n, n) matrix;  row_global : (r,) their numbers
-    free : (m,) increasing;  all_rows : ff keeps every row of L (those not free empty), else only
-        the free rows, in order (L the whole matrix: ff is its free block)
-    """
-    it = L.indices.dtype
-    index = np.full(L.shape[1], -1, it)
-    index[free] = np.arange(free.size, dtype=it)
-    row_free = index[row_global] >= 0
-    keep = np.repeat(row_free, np.diff(L.indptr)) & (index[L.indices] >= 0)
-    ff_rows = np.arange(L.shape[0]) if all_rows else np.flatnonzero(row_free)
-    ff = sp.csr_matrix((L.data[keep], index[L.indices[keep]], _kept_indptr(keep, L.indptr, ff_rows, it)),
-                       shape=(ff_rows.size, free.size))
-    drop = ~keep
-    del keep
-    rest = sp.csr_matrix((L.data[drop], L.indices[drop], _kept_indptr(drop, L.indptr, np.arange(L.shape[0]), it)),
-                         shape=L.shape)
-    return ff, rest
-
-
-def join_free(ff, rest, free: np.ndarray, ff_rows: np.ndarray) -> sp.coo_matrix:
-    """The rows :func:`split_free` split, as coo in the full numbering: ff's entries (its row i
-    is row ``ff_rows[i]``, its columns free numbers) and then rest's. Coordinates, not a sum: the
-    stored zeros (contact couplings) stay in the pattern."""
-    f, r = ff.tocoo(), rest.tocoo()
-    return sp.coo_matrix((np.concatenate([f.data, r.data]), (np.concatenate([ff_rows[f.row], r.row]),
-                                                            np.concatenate([free[f.col], r.col]))),
-                         shape=rest.shape)
-
-
-def _kept_indptr(keep: np.ndarray, indptr: np.ndarray, rows: np.ndarray, dtype) -> np.ndarray:
-    """CSR row pointer of the entries ``keep`` (nnz,) bool of the given rows, in their order."""
-    c = np.zeros(keep.size + 1, np.int64)
-    np.cumsum(keep, out=c[1:])
-    out = np.zeros(rows.size + 1, dtype)
-    np.cumsum(c[indptr[rows + 1]] - c[indptr[rows]], out=out[1:])
-    return out
 
 
 @dataclass

@@ -204,7 +204,8 @@ class LineSmoothedAMG:
     The AMG works on S in its own numbering. Renumbered colour by colour (so that a colour's rows
     would be a slice of it, no copies), its level-0 Gauss–Seidel sweeps in that order: Emerald's
     systems then needed 274 coupled GMRES iterations instead of 171 (the weak-scaling ones 41–58
-    instead of 43–62, no gain there to weigh against that). Lines, colours and band orders are kept by :meth:`refit`, which
+    instead of 43–62, no gain there to weigh against that). Lines, colours and band orders are kept by
+    :meth:`refit`, which
     takes a new S of the same pattern (between Newton iterations only contact rows change).
 
     Parameters

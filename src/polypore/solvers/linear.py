@@ -41,7 +41,7 @@ from ..core import live
 from ..core.interruptible import interruptible
 from ..core.errors import InputError, RunError
 from ..core.memory import trim_heap
-from .timing import SPLIT
+from ..core.timing import SPLIT
 
 log = logging.getLogger("polypore")
 
@@ -129,7 +129,7 @@ class LinearSolver:
     def __post_init__(self):
         if self.backend not in BACKENDS:
             raise InputError("solver.linear", f"unknown linear solver {self.backend!r}; allowed: {', '.join(BACKENDS)}")
-        from .distributed import context
+        from ..parallel.layout import context
 
         if context() is not None:
             self._distributed_backend()
@@ -141,7 +141,8 @@ class LinearSolver:
             try:
                 import pyamg  # noqa: F401
             except ImportError:
-                raise InputError("solver.linear", "'amg' needs the optional extra: pip install 'polypore[amg]'") from None
+                raise InputError("solver.linear",
+                                 "'amg' needs the optional extra: pip install 'polypore[amg]'") from None
         if self.backend in ("petsc", "block-petsc"):
             from .petsc import petsc
 
@@ -166,9 +167,9 @@ class LinearSolver:
 
     def solve(self, A, b) -> np.ndarray:
         """x (n,) or (n, k) with A x = b: A (n, n) sparse, or on N ranks this rank's rows
-        (:class:`~.distributed.OwnedRows`, the ``petsc`` backend only); b replicated."""
+        (:class:`~polypore.parallel.layout.OwnedRows`, the ``petsc`` backend only); b replicated."""
         t0 = time.perf_counter()
-        from .distributed import OwnedRows
+        from ..parallel.layout import OwnedRows
 
         if not isinstance(A, OwnedRows):
             A = sp.csr_matrix(A)
@@ -210,12 +211,13 @@ class LinearSolver:
             with SPLIT.timed("preconditioner", "factorising (SuperLU)"):
                 lu = interruptible(spla.splu, A.tocsc(), permc_spec="MMD_AT_PLUS_A" if self.symmetric else "COLAMD")
         except RuntimeError as exc:
-            raise RunError(f"the linear system is singular ({exc}): check the Dirichlet conditions and the data") from None
+            raise RunError(f"the linear system is singular ({exc}): check the Dirichlet conditions and the "
+                           "data") from None
         with SPLIT.timed("krylov", "triangular solves"):
             return interruptible(lu.solve, b)
 
     def _petsc(self, A, b):
-        from .distributed import OwnedRows, layout_for
+        from ..parallel.layout import OwnedRows, layout_for
 
         n = A.shape[0]
         layout = A.layout if isinstance(A, OwnedRows) else layout_for(self, n)   # None in a serial run

@@ -46,7 +46,7 @@ from ..core import live
 from ..core.errors import RunError
 from ..core.memory import trim_heap
 from .linear import LinearSolver
-from .timing import SPLIT
+from ..core.timing import SPLIT
 
 log = logging.getLogger("polypore")
 
@@ -59,7 +59,7 @@ class Linearisation:
     ----------
     residual : (n,) residual vector F(x)
     jacobian : (n, n) sparse generalised Jacobian; on N ranks this rank's rows of it
-        (:class:`~.distributed.OwnedRows`). Newton drops it after its linear solve.
+        (:class:`~polypore.parallel.layout.OwnedRows`). Newton drops it after its linear solve.
     block_norms : dict name -> scaled residual norm (dimensionless: each block's residual
         against the size of its own terms, 1 = nothing solved yet)
     counts : dict label -> int (e.g. open / stick / slip faces), logged
@@ -227,7 +227,7 @@ def forcing_term(fnorm: float, prev_fnorm: float | None, prev_eta: float | None,
 
 def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.ndarray, solver: LinearSolver,
                       increment_norm: Callable[[np.ndarray, np.ndarray], float],
-                      options: NewtonOptions = NewtonOptions(), verbose: bool = True,
+                      options: NewtonOptions | None = None, verbose: bool = True,
                       first_tight: bool = True, x_pred: np.ndarray | None = None) -> NewtonResult:
     """Run the semi-smooth Newton loop from x0.
 
@@ -246,6 +246,7 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
     prediction trades for small residuals in every block, and that comparison threw the predictor
     away where it halved the Newton iterations (docs/iterative_cornerpoint.md, ninth session).
     """
+    options = NewtonOptions() if options is None else options
     if options.forcing not in FORCING:
         raise ValueError(f"NewtonOptions.forcing must be one of {FORCING}, got {options.forcing!r}")
     live.update(newton_start=options.label, unknowns=int(np.size(x0)))

@@ -30,7 +30,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..core.errors import InputError, RunError
-from .timing import SPLIT
+from ..core.timing import SPLIT
 
 log = logging.getLogger("polypore")
 
@@ -582,7 +582,7 @@ class PetscLinearSolver:
 
     def solve(self, A, b) -> np.ndarray:
         t0 = time.perf_counter()
-        P, comm = self.driver.P, self.driver.comm
+        comm = self.driver.comm
         A = sp.csr_matrix(A)
         A.sum_duplicates()
         A.sort_indices()

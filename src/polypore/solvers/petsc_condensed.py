@@ -46,7 +46,7 @@ def field_index(blk) -> tuple[np.ndarray, np.ndarray]:
     it = np.int32 if blk.n < 2**31 - 1 else np.int64
     idx = np.empty(blk.n, it)
     off = np.zeros(3, np.int64)
-    for s, c in zip(starts, counts):           # one pass per rank, not per unknown
+    for s, c in zip(starts, counts, strict=True):           # one pass per rank, not per unknown
         for f in range(3):
             idx[s:s + c[f]] = off[f] + np.arange(c[f])
             s += c[f]
@@ -192,8 +192,6 @@ class CondensedPreconditioner:
         """Refill every block from this rank's rows R, the modified contact blocks (Clhat (nfl, d, d),
         Cu (nl_local × n csr, a sub-pattern of the build's)) and the lumped coupling (n_p_local,) or
         None."""
-        blk = self.blk
-        nu, po = blk.nu, blk.po
         bid = self.bid
         if self.has_l:
             self.inv = np.linalg.inv(Clhat) if len(Clhat) else np.zeros((0, self.d, self.d))

@@ -41,9 +41,9 @@ small meshes) have zero rows in the rigid-body modes (5.7 s instead of 0.05 s on
 complexity 17), docs/parallel.md. Every option can be overridden through ``options`` (without the
 solver's prefix, ``contact_`` or ``poro_`` by default) or on PETSc's command line with it.
 
-On N ranks (``mpiexec``, :mod:`.distributed`): each rank has only its rows of J (the models assemble
-them, :class:`~.distributed.OwnedRows`; a whole J is cut with the registered
-:class:`~.distributed.DofLayout`) and builds its rows of P from them: Cl̂ and Cû are row-local (a
+On N ranks (``mpiexec``, :mod:`polypore.parallel.layout`): each rank has only its rows of J (the models assemble
+them, :class:`~polypore.parallel.layout.OwnedRows`; a whole J is cut with the registered
+:class:`~polypore.parallel.layout.DofLayout`) and builds its rows of P from them: Cl̂ and Cû are row-local (a
 fracture face's rows are one rank's), Ŝ_p's diagonal needs G_up,ji / A_jj of displacement rows j
 held by other ranks, which one Alltoallv brings (:func:`lumped_coupling`). The index sets of the
 splits are each rank's owned rows of a field, and the solution is gathered on every rank.
@@ -60,14 +60,14 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
-from ..core.errors import InputError, RunError
+from ..core.errors import InputError
 from ..core.memory import trim_heap
 from .block_contact import ContactCondensation, _diag_blocks
-from .distributed import OwnedRows, _mpi, context, layout_for
+from ..parallel.layout import OwnedRows, _mpi, context, layout_for
 from .petsc import (AMG_KINDS, FIELD, KrylovDriver, PetscStats, ReusePolicy, aij, amg_defaults, collect_garbage,
                     interleaved_block_size, krylov_defaults, near_nullspace, petsc, petsc_options, vec)
 from .petsc_condensed import CondensedPreconditioner, csr_keys as _keys
-from .timing import SPLIT
+from ..core.timing import SPLIT
 
 log = logging.getLogger("polypore")
 
@@ -321,7 +321,7 @@ class _FieldSplitBase:
     """Shared machinery: PETSc matrices updated in place, the driver, the true-residual check.
 
     A Jacobian arrives whole (serial numbering; on N ranks each rank cuts out its rows with the
-    registered layout) or as this rank's rows (:class:`~.distributed.OwnedRows`, what the models
+    registered layout) or as this rank's rows (:class:`~polypore.parallel.layout.OwnedRows`, what the models
     assemble on N ranks). Everything after works on the rows at hand: P (Cl̂, Cû, Ŝ_p) is built
     for them only and they go to PETSc as they are.
     """
@@ -332,7 +332,7 @@ class _FieldSplitBase:
         self.P = petsc()
         if self.P.COMM_WORLD.getSize() > 1 and context() is None:
             raise InputError("solver.linear", "the PETSc block solvers run on N ranks in a distributed run "
-                             "only (polypore.solvers.distributed.activate(); docs/parallel.md)")
+                             "only (polypore.parallel.layout.activate(); docs/parallel.md)")
         self._lay = None
         self.bs_u = interleaved_block_size(self.near_nullspace, self.d)
         self.driver = KrylovDriver(prefix, defaults, options, reuse, self.rtol, self.maxiter, self.accept_rtol,

@@ -6,7 +6,7 @@ Design:
 * Every rank holds the whole mesh (built on rank 0 and broadcast). The Newton iterate, the residual
   and the active sets are replicated, so every rank takes the same Newton decisions without a
   reduction and the history on N ranks is the 1-rank history up to the linear solves.
-* The mesh cells are partitioned with METIS (:func:`polypore.mesh.partition.partition_cells`).
+* The mesh cells are partitioned with METIS (:func:`polypore.parallel.partition.partition_cells`).
   Every unknown of a linear system gets an owner rank from its cells (a model's ``dof_owner``):
   the lowest rank among the cells of a node, face or edge unknown; a fracture face's multipliers,
   bubbles and pressures the rank of its + side cell.
@@ -36,7 +36,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..core.errors import InputError
-from .block_jacobian import join_free, split_free
+from ..core.csr import join_free, split_free
 
 log = logging.getLogger("polypore")
 
@@ -121,7 +121,7 @@ class Distributed:
         hit = self._parts.get(key)
         if hit is not None and hit[0] is mesh:
             return hit[1]
-        from ..mesh.partition import partition_cells
+        from .partition import partition_cells
 
         parts = self.bcast_call(partition_cells, mesh, self.size)
         counts = np.bincount(parts, minlength=self.size)
@@ -433,10 +433,12 @@ def register_layout(solver, layout: DofLayout) -> None:
 def owned_layout(mesh, owner_of) -> DofLayout | None:
     """Under mpiexec: the layout of unknowns whose owner ranks are ``owner_of(part)`` (n,), from the
     cell ranks ``part`` (n_cells,) of ``mesh``'s partition; None when serial."""
+    from .ownership import cell_ownership
+
     ctx = context()
     if ctx is None:
         return None
-    return DofLayout(owner_of(ctx.partition(mesh)), ctx.comm)
+    return DofLayout(owner_of(cell_ownership(mesh).owner), ctx.comm)
 
 
 def distribute(solver, mesh, owner_of) -> DofLayout | None:
