@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 from ..core.errors import InputError
 from ..mesh.generators.fronts import RING_RADIUS, SECTORS, graded_count, ring_radii
+from .generators import REGISTRY, resolve
 
 FLAG = "--no-limits"
 MAX_STEPS = 1_000_000            # time steps of one run
@@ -205,30 +206,60 @@ def grdecl_header_dims(path, max_lines: int = 1_000_000):
 
 
 def _cells(spec) -> tuple[float, str]:
-    m = spec.mesh
+    return resolve(REGISTRY[spec.mesh.generator].estimate)(spec)
+
+
+# ---- each generator's estimate (setup/generators.py): spec -> (cells, the field that sets them) --
+def _refine_factor(m) -> tuple[int, str | None]:
     refine = math.prod(getattr(m, "refine", None) or (1, 1, 1))
-    rfield = "mesh.refine" if refine > 1 else None
-    if m.generator == "grdecl":        # nx·ny·nz of the file's header (unknown in an INCLUDE file)
-        from .meshing import grdecl_path
-        try:
-            dims = grdecl_header_dims(grdecl_path(m.file, spec.base_dir))
-        except InputError:
-            dims = None
-        return (math.nan if dims is None else float(math.prod(dims)) * refine), rfield or "mesh.file"
-    if m.generator == "file":
-        return math.nan, "mesh.file"
-    if m.generator == "cornerpoint":   # at most nx·ny·nz (inactive and pinched-out cells are left out)
-        return float(math.prod(m.cells)) * refine, rfield or "mesh.cells"
-    d = len(m.lower)
+    return refine, ("mesh.refine" if refine > 1 else None)
+
+
+def cells_grdecl(spec) -> tuple[float, str]:
+    """nx·ny·nz of the file's header (unknown in an INCLUDE file: NaN), times the refinement."""
+    from .meshing import grdecl_path
+
+    m = spec.mesh
+    refine, rfield = _refine_factor(m)
+    try:
+        dims = grdecl_header_dims(grdecl_path(m.file, spec.base_dir))
+    except InputError:
+        dims = None
+    return (math.nan if dims is None else float(math.prod(dims)) * refine), rfield or "mesh.file"
+
+
+def cells_file(spec) -> tuple[float, str]:
+    """A mesh file's count is known once it is read: NaN."""
+    return math.nan, "mesh.file"
+
+
+def cells_cornerpoint(spec) -> tuple[float, str]:
+    """At most nx·ny·nz (inactive and pinched-out cells are left out), times the refinement."""
+    m = spec.mesh
+    refine, rfield = _refine_factor(m)
+    return float(math.prod(m.cells)) * refine, rfield or "mesh.cells"
+
+
+def cells_cartesian(spec) -> tuple[float, str]:
+    m = spec.mesh
+    if m.cells is not None:
+        return float(math.prod(m.cells)), "mesh.cells"
     extent = [hi - lo for lo, hi in zip(m.lower, m.upper)]
-    volume = math.prod(extent)
-    if m.generator == "cartesian":
-        if m.cells is not None:
-            return float(math.prod(m.cells)), "mesh.cells"
-        return float(math.prod(max(1, math.ceil(e / m.size)) for e in extent)), "mesh.size"
+    return float(math.prod(max(1, math.ceil(e / m.size)) for e in extent)), "mesh.size"
+
+
+def cells_voronoi(spec) -> tuple[float, str]:
+    m = spec.mesh
+    return math.prod(hi - lo for lo, hi in zip(m.lower, m.upper)) / m.size ** len(m.lower), "mesh.size"
+
+
+def cells_simplicial(spec) -> tuple[float, str]:
+    """The bulk at ``size`` plus the bands graded from the fractures and, with ``tip_size``, the
+    tips' or fronts' refinement."""
+    m = spec.mesh
+    d = len(m.lower)
+    volume = math.prod(hi - lo for lo, hi in zip(m.lower, m.upper))
     size = m.size
-    if m.generator == "voronoi":
-        return volume / size ** d, "mesh.size"
     h = m.fracture_size or size
     parts = {"mesh.size": CELLS_PER_SIZE[d] * volume / size ** d, "mesh.fracture_size": 0.0, "mesh.tip_size": 0.0}
     for measure, tips, edge, edges in _fractures(spec, d):
@@ -236,12 +267,16 @@ def _cells(spec) -> tuple[float, str]:
         parts["mesh.fracture_size"] += _band(measure, tips, hf, size, m.grading, d, volume)
         if m.generator == "simplicial" and getattr(m, "front", "isotropic") == "anisotropic" and m.tip_size:
             parts["mesh.tip_size"] += _front_tubes(edges, hf, m.tip_size, m.tip_grading)
-        elif m.generator == "simplicial" and m.tip_size is not None and m.tip_size < hf < size:
+        elif m.generator == "simplicial" and getattr(m, "tip_size", None) is not None and m.tip_size < hf < size:
             parts["mesh.tip_size"] += _tips(tips, hf, d, m.tip_size, m.tip_grading)
-    cells = sum(parts.values())
-    if m.generator == "agglomerated":   # a simplicial mesh of half the sizes, merged pairwise per round
-        cells *= 2 ** d / 2 ** m.rounds
-    return cells, max(parts, key=parts.get)
+    return sum(parts.values()), max(parts, key=parts.get)
+
+
+def cells_agglomerated(spec) -> tuple[float, str]:
+    """A simplicial mesh of half the sizes, merged pairwise per round."""
+    cells, field = cells_simplicial(spec)
+    d = len(spec.mesh.lower)
+    return cells * 2 ** d / 2 ** spec.mesh.rounds, field
 
 
 def estimate(spec, levels: int = 1) -> Estimate:

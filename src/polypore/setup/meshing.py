@@ -55,6 +55,7 @@ from ..core.memory import trim_heap
 from ..mesh import FracturedMesh, FractureSpec
 from ..mesh.mesh import with_boundary_parts, with_regions
 from .casefile import CaseFile
+from .generators import REGISTRY, resolve
 
 log = logging.getLogger("polypore")
 
@@ -207,53 +208,15 @@ def _build_fractured_mesh(case: CaseFile) -> FracturedMesh:
     spec = case.spec
     m = spec.mesh
     t0 = time.perf_counter()
-    if m.generator == "file":
-        return _file_mesh(case, spec, t0)
-    if m.generator in ("grdecl", "cornerpoint"):
-        return _cornerpoint_mesh(spec, t0)
+    gen = REGISTRY[m.generator]
+    if not gen.box:
+        return resolve(gen.build)(case, spec, t0)
     lower, upper = np.asarray(m.lower), np.asarray(m.upper)
     dim = lower.size
     specs = _fracture_specs(spec)
     regions = _regions(spec, dim)
     interfaces = _interfaces(regions, lower, upper)
-    if m.generator == "cartesian":
-        from ..mesh.generators.cartesian import cartesian_mesh, grid_coordinates
-
-        if m.cells is not None:   # `cells` takes precedence over a size inherited from the case
-            cells = [int(c) for c in m.cells]
-        else:
-            cells = [max(1, int(np.ceil((upper[k] - lower[k]) / m.size))) for k in range(dim)]
-        include = [set() for _ in range(dim)]
-        for s in list(specs) + interfaces:
-            for k in range(dim):
-                include[k].update(np.asarray(s.vertices)[:, k].tolist())
-        axes = [grid_coordinates(lower[k], upper[k], cells[k], sorted(include[k])) for k in range(dim)]
-        mesh = cartesian_mesh(axes)
-    elif m.generator == "simplicial" and m.front == "anisotropic":
-        from ..mesh.generators.fronts import front_mesh
-
-        mesh = front_mesh(lower, upper, specs, m.size, fracture_size=m.fracture_size or m.size, interfaces=interfaces,
-                          tip_size=m.tip_size, tip_grading=m.tip_grading, grading=m.grading, seed=m.seed)
-    elif m.generator == "simplicial":
-        from ..mesh.generators.simplicial import simplicial_mesh
-
-        mesh = simplicial_mesh(lower, upper, specs, m.size, fracture_size=m.fracture_size or m.size,
-                               interfaces=interfaces, seed=m.seed, grading=m.grading, tip_size=m.tip_size,
-                               tip_grading=m.tip_grading, mirror=m.mirror)
-    elif m.generator == "voronoi":
-        from ..mesh.generators.voronoi import voronoi_mesh
-
-        mesh = voronoi_mesh(lower, upper, m.size, list(specs) + interfaces, seed=m.seed)
-    else:  # agglomerated
-        from ..mesh import build_network
-        from ..mesh.generators.agglomerate import agglomerate
-        from ..mesh.generators.simplicial import simplicial_mesh
-
-        fsize = m.fracture_size or m.size
-        base = simplicial_mesh(lower, upper, specs, m.size / 2, fracture_size=fsize / 2, interfaces=interfaces,
-                               seed=m.seed, grading=m.grading)
-        keep = build_network(base, list(specs) + interfaces).faces
-        mesh = agglomerate(base, keep, rounds=m.rounds, seed=m.seed)
+    mesh = resolve(gen.build)(m, lower, upper, specs, interfaces)
     log.info("%s mesh generator: %d cells in %.2f s", m.generator, mesh.n_cells, time.perf_counter() - t0)
     if m.perturb > 0:
         from ..mesh.generators.perturb import perturb
@@ -266,6 +229,65 @@ def _build_fractured_mesh(case: CaseFile) -> FracturedMesh:
     if regions:
         fm = _assign_regions(fm, regions)
     return _boundary_parts(spec, fm)
+
+
+# ---- the box generators' builders (setup/generators.py): (mesh table, lower, upper, fracture
+# specs, region interfaces) -> Mesh -------------------------------------------------------------
+def build_cartesian(m, lower, upper, specs, interfaces):
+    from ..mesh.generators.cartesian import cartesian_mesh, grid_coordinates
+
+    dim = lower.size
+    if m.cells is not None:   # `cells` takes precedence over a size inherited from the case
+        cells = [int(c) for c in m.cells]
+    else:
+        cells = [max(1, int(np.ceil((upper[k] - lower[k]) / m.size))) for k in range(dim)]
+    include = [set() for _ in range(dim)]
+    for s in list(specs) + interfaces:
+        for k in range(dim):
+            include[k].update(np.asarray(s.vertices)[:, k].tolist())
+    axes = [grid_coordinates(lower[k], upper[k], cells[k], sorted(include[k])) for k in range(dim)]
+    return cartesian_mesh(axes)
+
+
+def build_simplicial(m, lower, upper, specs, interfaces):
+    if m.front == "anisotropic":
+        from ..mesh.generators.fronts import front_mesh
+
+        return front_mesh(lower, upper, specs, m.size, fracture_size=m.fracture_size or m.size,
+                          interfaces=interfaces, tip_size=m.tip_size, tip_grading=m.tip_grading, grading=m.grading,
+                          seed=m.seed)
+    from ..mesh.generators.simplicial import simplicial_mesh
+
+    return simplicial_mesh(lower, upper, specs, m.size, fracture_size=m.fracture_size or m.size,
+                           interfaces=interfaces, seed=m.seed, grading=m.grading, tip_size=m.tip_size,
+                           tip_grading=m.tip_grading, mirror=m.mirror)
+
+
+def build_voronoi(m, lower, upper, specs, interfaces):
+    from ..mesh.generators.voronoi import voronoi_mesh
+
+    return voronoi_mesh(lower, upper, m.size, list(specs) + interfaces, seed=m.seed)
+
+
+def build_agglomerated(m, lower, upper, specs, interfaces):
+    from ..mesh import build_network
+    from ..mesh.generators.agglomerate import agglomerate
+    from ..mesh.generators.simplicial import simplicial_mesh
+
+    fsize = m.fracture_size or m.size
+    base = simplicial_mesh(lower, upper, specs, m.size / 2, fracture_size=fsize / 2, interfaces=interfaces,
+                           seed=m.seed, grading=m.grading)
+    keep = build_network(base, list(specs) + interfaces).faces
+    return agglomerate(base, keep, rounds=m.rounds, seed=m.seed)
+
+
+# ---- the generators that bring their own geometry: (case, spec, t0) -> FracturedMesh -----------
+def build_file(case: CaseFile, spec, t0: float) -> FracturedMesh:
+    return _file_mesh(case, spec, t0)
+
+
+def build_cornerpoint(case: CaseFile, spec, t0: float) -> FracturedMesh:
+    return _cornerpoint_mesh(spec, t0)
 
 
 def _file_mesh(case: CaseFile, spec, t0: float) -> FracturedMesh:

@@ -8,26 +8,17 @@ from __future__ import annotations
 
 from pydantic import Field, model_validator
 
+from ..generators import REGISTRY
 from .types import Expr, Positive, Table, Text, choice, fail, number, points, vector
 
 # polypore.mesh.generators.mirror.MODES (importing it would load gmsh; tests/test_schema.py compares)
 MIRROR_MODES = ("none", "tips", "fractures")
 FRONTS = ("isotropic", "anisotropic")     # crack-front cells of the simplicial generator (3D)
-GENERATORS = ("cartesian", "simplicial", "voronoi", "agglomerated", "file", "grdecl", "cornerpoint")
 CORNERPOINT = ("grdecl", "cornerpoint")   # corner-point grids (docs/cornerpoint.md): 3D, faults from the grid
 NONPLANAR = ("centre", "diagonal", "keep")   # polypore.mesh.cornerpoint.process_grid(nonplanar=)
-_BOX = {"lower", "upper", "seed", "perturb"}
-GENERATOR_KEYS = {
-    "cartesian": _BOX | {"cells", "size"},
-    "simplicial": _BOX | {"size", "fracture_size", "grading", "tip_size", "tip_grading", "mirror", "front"},
-    "voronoi": _BOX | {"size"},
-    "agglomerated": _BOX | {"size", "fracture_size", "grading", "rounds"},
-    "file": {"file"},
-    "grdecl": {"file", "nonplanar", "region_keyword", "snap", "refine"},
-    "cornerpoint": {"cells", "extent", "top", "dip", "faults", "pinchout", "pillar_angle", "inactive", "seed",
-                    "layer_permeability", "nonplanar",
-                    "region_keyword", "snap", "refine"},
-}
+# each generator's keys: the registry (setup/generators.py), which set-up and limits read too
+GENERATORS = tuple(REGISTRY)
+GENERATOR_KEYS = {name: set(g.keys) for name, g in REGISTRY.items()}
 Coordinates = vector((2, 3), "coordinates (m)")
 
 
