@@ -21,6 +21,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from ..assembly.elasticity import elasticity_matrix
+from ..assembly.blocks import Block
 from ..assembly.pattern import BlockPattern, Pattern
 from ..core.csr import with_entries
 from ..core.errors import InputError
@@ -565,7 +566,7 @@ class ContactMechanics:
         n = self.free.size + self.n_c * self.dim
         blocks, values = self.jacobian_blocks(J)
         self.pattern = jacobian_pattern(blocks, n, self.layout)
-        self._fixed_vals = np.concatenate([self.pattern.take(k, values[k]) for k in (0, 1)])
+        self._fixed_vals = np.concatenate([self.pattern.take(k, values[k]) for k in (Block.ELASTIC, Block.MULTIPLIER)])
 
     # ---- loads ----------------------------------------------------------------------------
     def dirichlet_vector(self, t: float = 0.0) -> np.ndarray:
@@ -662,7 +663,8 @@ class ContactMechanics:
             jrow, jval, keep = self.contact_jump_entries
             pat = self.pattern
             cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
-            Jac = pat.fill([self._fixed_vals, pat.take(2, cu), pat.take(3, dC_dlam * (b * b)[:, None, None])])
+            Jac = pat.fill([self._fixed_vals, pat.take(Block.CONTACT_JUMP, cu),
+                            pat.take(Block.CONTACT_MULTIPLIER, dC_dlam * (b * b)[:, None, None])])
             if self.layout is not None:
                 Jac = OwnedRows(Jac, self.layout)
         # scales: the work-conjugate size of each block (energy-norm scaling)

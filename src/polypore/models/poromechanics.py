@@ -59,6 +59,7 @@ from typing import Mapping
 import numpy as np
 import scipy.sparse as sp
 
+from ..assembly.blocks import Block, PressureRowBlock
 from ..assembly.pattern import BlockPattern, Pattern
 from ..core.errors import InputError, RunError
 from ..core.memory import int32_indices, trim_heap
@@ -494,11 +495,11 @@ class Poromechanics:
         # the elasticity and multiplier blocks never change; A's values are put into each step's
         # data from A itself (step_context) rather than kept as a data array of the whole pattern
         # (nnz × 8 bytes, 86 MB on the 30,000-cell study); A's entries have distinct slots
-        self._a_distinct = pat.distinct(0)
-        self._bt_vals = pat.take(1, values[1])
+        self._a_distinct = pat.distinct(Block.ELASTIC)
+        self._bt_vals = pat.take(Block.MULTIPLIER, values[Block.MULTIPLIER])
         del values, blocks                 # the (row, col) lists: int64 per contribution
-        self._g_u = (pat.take(4, G.data[kg]), gc[kg].astype(it))      # values (m^d), p column
-        self._g_p = (pat.take(5, T.data[kt]), tr[kt].astype(it))      # values (m^d), p row
+        self._g_u = (pat.take(Block.COUPLING, G.data[kg]), gc[kg].astype(it))      # values (m^d), p column
+        self._g_p = (pat.take(Block.BIOT, T.data[kt]), tr[kt].astype(it))      # values (m^d), p row
         del G, T                           # coo copies of the coupling blocks
         if self.layout is not None:
             register_layout(self.solver, self.layout)
@@ -546,7 +547,8 @@ class Poromechanics:
         ar, ac = self._af_rc
         f_ptr = np.zeros(npf + 1, it)
         np.cumsum(np.bincount(ar, minlength=npf), out=f_ptr[1:])
-        self._blocks = {"up": (up, g_up[2], g_up[1].astype(it)), "pu": (pu, pu.take(0, g_pu[2]), g_pu[0].astype(it)),
+        self._blocks = {"up": (up, g_up[2], g_up[1].astype(it)),
+                        "pu": (pu, pu.take(PressureRowBlock.BIOT, g_pu[2]), g_pu[0].astype(it)),
                         "pp": (f_ptr, ac)}
         self._cu = self.mech.contact_jump_entries
 
@@ -865,20 +867,23 @@ class Poromechanics:
             if np.any(dil_vals) or imp_vals is not None:
                 pu_data = pu_data.copy()
                 if np.any(dil_vals):
-                    pu.add(pu_data, 1, dil_vals)
+                    pu.add(pu_data, PressureRowBlock.DILATANCY, dil_vals)
                 if imp_vals is not None:
-                    pu.add(pu_data, 2, imp_vals)
+                    pu.add(pu_data, PressureRowBlock.IMPLICIT_CONDUCTIVITY, imp_vals)
                     Fp = sp.csr_array((Fp.data - imp_dpp, Fp.indices, Fp.indptr), shape=Fp.shape)
             Jm = mech.jacobian_by_blocks(cu, dC_dlam * (b * b)[:, None, None])
             Jac = BlockJacobian(Jm.uu, Jm.ul, Jm.lu, Jm.ll, Gup, pu.matrix(pu_data), Fp)
         else:
             pat = self.pattern
-            # blocks in pattern order 2, 3, then 7 after the step's 4–6: the sums of pat.fill bit for bit
-            data = pat.add(j_step.copy(), 2, pat.take(2, cu))
-            pat.add(data, 3, pat.take(3, dC_dlam * (b * b)[:, None, None]))
-            pat.add(data, 7, pat.take(7, dil_vals))
+            # blocks in pattern order (contact jump, contact multiplier, then dilatancy) after the
+            # step's coupling, Biot and flow blocks: the sums of pat.fill bit for bit
+            data = pat.add(j_step.copy(), Block.CONTACT_JUMP, pat.take(Block.CONTACT_JUMP, cu))
+            cl = pat.take(Block.CONTACT_MULTIPLIER, dC_dlam * (b * b)[:, None, None])
+            pat.add(data, Block.CONTACT_MULTIPLIER, cl)
+            pat.add(data, Block.DILATANCY, pat.take(Block.DILATANCY, dil_vals))
             if imp_vals is not None:
-                pat.add(pat.add(data, 8, pat.take(8, imp_vals)), 6, pat.take(6, -imp_dpp))
+                pat.add(pat.add(data, Block.IMPLICIT_CONDUCTIVITY, pat.take(Block.IMPLICIT_CONDUCTIVITY, imp_vals)),
+                        Block.FLOW, pat.take(Block.FLOW, -imp_dpp))
             Jac = pat.matrix(data)
             del data
             if self.layout is not None:
@@ -992,9 +997,11 @@ class Poromechanics:
             g_vals = (self._g_u[0] * sf[self._g_u[1]], self._g_p[0] * sf[self._g_p[1]])   # pressures scaled by s
             pat = self.pattern
             fill = pat.put if self._a_distinct else pat.add
-            j_step = fill(pat.zeros(), 0, pat.take(0, mech.elastic_block_values()))
-            pat.add(j_step, 1, self._bt_vals)
-            j_step = pat.add(pat.add(pat.add(j_step, 4, -cs * g_vals[0]), 5, -g_vals[1]), 6, -af_vals)
+            j_step = fill(pat.zeros(), Block.ELASTIC, pat.take(Block.ELASTIC, mech.elastic_block_values()))
+            pat.add(j_step, Block.MULTIPLIER, self._bt_vals)
+            pat.add(j_step, Block.COUPLING, -cs * g_vals[0])
+            pat.add(j_step, Block.BIOT, -g_vals[1])
+            j_step = pat.add(j_step, Block.FLOW, -af_vals)
             del g_vals
         del af_vals
         # the implicit conductivities' reference: the coefficients A_dt was built with, and Δt
