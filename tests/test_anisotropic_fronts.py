@@ -163,6 +163,7 @@ def test_fractures_it_cannot_mesh_are_refused():
     assert area[fm.network.faces_of("C")].sum() == pytest.approx(0.16, rel=1e-12)
 
 
+@pytest.mark.slow
 def test_p2_on_a_coarse_anisotropic_mesh_beats_the_isotropic_default():
     """Scale 2 (9.6k unknowns, docs/cube_slip_anisotropic.md: max slip 2.2 %, slip L2 3.9 %, rim out
     3.3 %) against the case's isotropic r^0.6 mesh with 22.5k unknowns (2.7 / 7.0 / 4.6 %)."""

@@ -164,6 +164,7 @@ def check_exactness(mesh, info, fm=None, G=G3):
     return P, st
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", FILES + list(GENERATED))
 def test_processed_grid_is_exact(name):
     mesh, info = processed(name)

@@ -56,6 +56,7 @@ def test_tip_graded_mesh_beats_uniform_per_unknown():
     assert graded["max_slip_error_rel"] < 0.85 * uni["max_slip_error_rel"]
 
 
+@pytest.mark.slow
 def test_quadratic_runs_are_measured_as_fields():
     """With mechanics.order = 2 the case's errors use the P2 slip at the points of a face rule (not
     the face means, which would cost O(h²) by themselves); open_faces still counts faces."""
@@ -74,6 +75,7 @@ def test_quadratic_runs_are_measured_as_fields():
     assert 0 <= err["open_faces"] <= problem.n_ff
 
 
+@pytest.mark.slow
 def test_the_case_default_meets_3_percent_on_max_slip_and_slip_profile():
     """The built-in case (P2 on anisotropic crack-front cells, 17.7k unknowns): issue 13's target,
     ≤ 3 % on the maximum slip and on the slip profile (relative L2) with ≤ 20,000 unknowns;

@@ -190,6 +190,7 @@ def test_penny_inclined_on_a_general_mesh():
     assert e["faces_stick"] == 0 and e["faces_slip"] > 0.85 * e["faces"]
 
 
+@pytest.mark.slow
 def test_quadratic_displacements_beat_p1_on_a_coarse_penny_mesh():
     # mechanics.order = 2 on crack faces a/5, bulk grading 0.5 (benchmarks/penny_study.py's P2
     # family, its coarsest level): the opening error P1 on the same mesh is far from

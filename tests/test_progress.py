@@ -284,6 +284,7 @@ def test_cli_plain_lines_in_a_log(tmp_path):
     assert any("step 10/10" in l for l in err.splitlines())        # the per-step lines are kept
 
 
+@pytest.mark.slow
 def test_cli_terminal_line_is_cleared(tmp_path):
     code, out = _run_cli(SHORT_DFM + ["--out", str(tmp_path / "r")], {}, tty=True)
     assert code == 0, out
