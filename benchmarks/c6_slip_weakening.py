@@ -54,6 +54,7 @@ def run(overrides) -> dict:
     model, fs, _ = poro_setup(case, fm)
     times = fs.schedule.times()
     st = model.initial_state(fs.initial_pressure, t0=times[0])
+    fq0 = model.fracture_quantities(st)
     n = model.mech.normal
     q0 = model.jumps(st.u)
     rows, stop = [], None
@@ -79,7 +80,40 @@ def run(overrides) -> dict:
                      "largest_slip_m": float(slip.max()), "largest_rate_m_per_day": float(rate.max()),
                      "slipped_area_m": float(model.mech.face_area[slip > 1e-4].sum())})
         st = new
-    return {"steps": rows, "stopped": stop}
+    # the fields at the last converged step: the law holds on every face, and the traction change
+    # against the overpressure
+    fq = model.fracture_quantities(st)
+    F = model.friction_fields(st).get("friction_coefficient")
+    if F is None:
+        F = model.mech.face_values(model.mech.law.friction_law.friction)
+    ln, lt, slipping = fq["lambda_n"], fq["lambda_t"], fq["state"] == SLIP
+    fields = {"slip_law_misfit": float(np.max(np.abs(lt[slipping] / ln[slipping] - F[slipping]), initial=0.0)),
+              "stuck_inside_cone": bool(np.all(lt[~slipping] <= F[~slipping] * np.maximum(ln[~slipping], 0) * (1 + 1e-9)
+                                               + 1e-9 * np.abs(ln).max())),
+              "largest_dlambda_n_Pa": float(np.abs(ln - fq0["lambda_n"]).max()),
+              "largest_p_f_Pa": float(fq["p_f"].max()),
+              "s": fq["jump_t"].tolist(), "lambda_t": lt.tolist(),
+              "slipped": (tangential(model.jumps(st.u) - q0, n) > 1e-4).tolist(),
+              "length": model.mech.face_area.tolist()}
+    return {"steps": rows, "stopped": stop, "fields": fields}
+
+
+def dilatancy_free_pair() -> dict:
+    """Coulomb against F_d = 0.36 without dilatancy (whose hardening damps the slip): the shear the
+    weakened patch sheds, the extra slip, and a crack's bound 2Δτa/μ* for that drop (μ* = μ/(1 − ν))."""
+    c = run(["flow.dilatancy_angle=0"])["fields"]
+    w = run(["flow.dilatancy_angle=0"] + VARIANTS["weakening, F_d = 0.36"])["fields"]
+    on = np.array(w["slipped"])
+    length = np.array(w["length"])
+    drop = np.array(c["lambda_t"]) - np.array(w["lambda_t"])
+    case = load_case("fault-injection")
+    E, nu = case.spec.material.E, case.spec.material.nu
+    mu_star = E / (2 * (1 + nu)) / (1 - nu)
+    bound = 2 * drop[on].mean() * 0.5 * length[on].sum() / mu_star
+    return {"slipped_length_m": float(length[on].sum()), "mean_shear_drop_Pa": float(drop[on].mean()),
+            "largest_shear_drop_Pa": float(drop[on].max()), "crack_bound_m": float(bound),
+            "extra_slip_m": float(max(w["s"]) - max(c["s"])), "slip_coulomb_m": float(max(c["s"])),
+            "slip_weakening_m": float(max(w["s"]))}
 
 
 def main(argv=None) -> int:
@@ -96,6 +130,17 @@ def main(argv=None) -> int:
               f"(> 0.1 mm) {last['slipped_area_m']:.0f} m of fault, largest slip rate over the run "
               f"{1e3 * max(x['largest_rate_m_per_day'] for x in r['steps']):.3f} mm/day"
               + (f"\n    stopped: {r['stopped'][:300]}" if r["stopped"] else ""), flush=True)
+        f = r["fields"]
+        print(f"    fields at the last converged step: slipping faces |λ_τ|/λ_n − F(δ) ≤ {f['slip_law_misfit']:.1e}, "
+              f"stuck faces inside their cone: {f['stuck_inside_cone']}, largest |Δλ_n| "
+              f"{f['largest_dlambda_n_Pa'] / 1e6:.2f} MPa against p_f {f['largest_p_f_Pa'] / 1e6:.2f} MPa", flush=True)
+    pair = dilatancy_free_pair()
+    res["without dilatancy"] = pair
+    print(f"without dilatancy: the weakened patch ({pair['slipped_length_m']:.0f} m) sheds "
+          f"{pair['mean_shear_drop_Pa'] / 1e6:.3f} MPa of shear on average ({pair['largest_shear_drop_Pa'] / 1e6:.2f} "
+          f"at most); a crack with that uniform drop slips {1e3 * pair['crack_bound_m']:.1f} mm more at its centre "
+          f"(an upper bound); the runs differ by {1e3 * pair['extra_slip_m']:.2f} mm "
+          f"({1e3 * pair['slip_weakening_m']:.2f} against {1e3 * pair['slip_coulomb_m']:.2f} mm)", flush=True)
     if args.json:
         args.json.write_text(json.dumps({"command": " ".join(sys.argv), "runs": res}, indent=1))
     if args.png:
@@ -106,6 +151,8 @@ def main(argv=None) -> int:
 
         fig, (a1, a2) = plt.subplots(1, 2, figsize=(11, 4))
         for name, r in res.items():
+            if "steps" not in r:
+                continue
             d = [x["day"] for x in r["steps"]]
             lab = name + (" (no equilibrium after)" if r["stopped"] else "")
             a1.plot(d, [1e3 * x["largest_slip_m"] for x in r["steps"]], ".-", ms=3, label=lab)

@@ -172,6 +172,7 @@ def test_slip_weakening_radius_and_state():
     assert set(law.state_fields(st)) == {"slip_path", "friction_coefficient"}
     c = Coulomb(np.array([0.5]))
     assert c.initial_state(4).shape == (4, 0) and c.state_fields(c.initial_state(4)) == {}
+    assert c.instability_hint is None and "nucleation length" in law.instability_hint
     with pytest.raises(InputError, match="contact.dynamic_friction"):
         SlipWeakening(np.array([0.5]), np.array([0.6]), np.array([1e-3]))
     with pytest.raises(InputError, match="contact.critical_slip"):

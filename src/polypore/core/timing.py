@@ -17,7 +17,7 @@ from __future__ import annotations
 import time
 from contextlib import contextmanager
 
-from ..core import live
+from . import live
 
 CATEGORIES = ("assembly", "linear", "preconditioner", "krylov")
 # The categories keep their names in summary.json (seconds_preconditioner, seconds_krylov), but a

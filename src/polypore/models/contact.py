@@ -62,20 +62,10 @@ class ContactLaw:
         if np.any(~(self.beta > 0)):
             raise InputError("contact.beta", "must be positive")
 
-    @property
-    def kind(self) -> str:
-        """The friction law's name ("frictionless", "tresca", "coulomb", "slip-weakening")."""
-        return self.friction_law.name
-
 
 def _normal_tangential(v, n):
     vn = np.einsum("fi,fi->f", v, n)
     return vn, v - vn[:, None] * n
-
-
-def contact_state(law: ContactLaw, lam, q, s, n, state=None, dt: float = 0.0):
-    """(n_ff,) state per face (OPEN / STICK / SLIP) at the current iterate."""
-    return linearise_contact(law, lam, q, s, n, np.ones(len(n)), state, dt)[3]
 
 
 def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.ndarray, n: np.ndarray,

@@ -47,6 +47,8 @@ class FrictionLaw(Protocol):
     """What the contact linearisation and the energy audit need of a friction law."""
 
     name: str
+    # what a run that lost its equilibrium should be told, for a law that can soften (None: cannot)
+    instability_hint: str | None
 
     def radius(self, y_n: np.ndarray, slip: np.ndarray, state: np.ndarray, dt: float) -> Radius:
         """r at trial normal traction y_n (n,) Pa and step slip ``slip`` (n, d) m, tangential."""
@@ -65,10 +67,6 @@ class FrictionLaw(Protocol):
         ...
 
 
-def _no_state(n: int) -> np.ndarray:
-    return np.zeros((n, 0))
-
-
 def _check(key: str, values: np.ndarray, what: str, positive: bool = False) -> np.ndarray:
     v = np.asarray(values, float)
     bad = ~np.isfinite(v) | ((v <= 0) if positive else (v < 0))
@@ -78,10 +76,12 @@ def _check(key: str, values: np.ndarray, what: str, positive: bool = False) -> n
 
 
 class _Stateless:
-    """The state methods of a law without state."""
+    """The state methods of a law without state (which cannot soften either)."""
+
+    instability_hint = None
 
     def initial_state(self, n: int) -> np.ndarray:
-        return _no_state(n)
+        return np.zeros((n, 0))
 
     def advance(self, state, slip, dt) -> np.ndarray:
         return state
@@ -156,6 +156,12 @@ class SlipWeakening:
     dynamic: np.ndarray
     critical_slip: np.ndarray
     name: str = field(default="slip-weakening", init=False)
+    # a weakening fault can lose every quasi-static equilibrium near the last one: the slipping
+    # patch runs away (an earthquake), which no smaller step resolves
+    instability_hint = ("With slip-weakening friction this is typically a frictional instability: the slipping "
+                        "patch outgrew its nucleation length (2a_c = 1.158 μ/((1 − ν) W), W = (friction − "
+                        "dynamic_friction) σ_n′ / critical_slip) and the fault has no quasi-static equilibrium "
+                        "near the last state (docs/contact.md, \"Slip-weakening\")")
 
     def __post_init__(self):
         fs = _check("contact.friction", self.friction, "must be finite and ≥ 0")
@@ -200,14 +206,12 @@ LAW_KEYS = {"friction": ("coulomb", "slip-weakening"), "threshold": ("tresca",),
 
 
 def friction_law(name: str, n: int, friction=None, threshold=None, dynamic_friction=None,
-                 critical_slip=None, **unused) -> FrictionLaw:
+                 critical_slip=None) -> FrictionLaw:
     """The law ``name`` for n patches from its coefficients ((n,) arrays or scalars).
 
     Raises
     ------
     InputError naming the contact key when the law is unknown or a coefficient is missing or out of range
-
-    Coefficients another law reads (``unused``) are ignored: a case's per-face values exist for every key.
     """
     if name not in LAWS:
         raise InputError("contact.law", f"unknown contact law {name!r}; allowed: {', '.join(LAWS)}")

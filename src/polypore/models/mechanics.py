@@ -627,6 +627,19 @@ class ContactMechanics:
         lam = x[nfree:].reshape(self.n_c, self.dim) * self.law.beta[:, None]
         return u, lam
 
+    def friction_state(self, state: np.ndarray | None) -> np.ndarray:
+        """(n_c, k) the friction law's state ``state``, or its initial state for None."""
+        return self.law.friction_law.initial_state(self.n_c) if state is None else state
+
+    def advance_friction(self, state: np.ndarray | None, u: np.ndarray, q_old: np.ndarray | None,
+                         dt: float) -> np.ndarray:
+        """(n_c, k) the friction law's state after a step that took the patch jumps from ``q_old``
+        (n_c, d; None: zero) to those of the displacements ``u`` (n_slots·d,), m."""
+        q = (self.Jcv @ np.ravel(u)).reshape(self.n_c, self.dim)
+        s = q if q_old is None else q - q_old
+        s = s - np.einsum("fi,fi->f", s, self.c_normal)[:, None] * self.c_normal
+        return self.law.friction_law.advance(self.friction_state(state), s, dt)
+
     def patch_values(self, face_values: np.ndarray) -> np.ndarray:
         """(n_c, ...) patch means of face values (n_ff, ...) (the values themselves on faces
         that are their own patch)."""
@@ -715,13 +728,7 @@ class ContactMechanics:
         res = semismooth_newton(lambda x: self.linearise(x, F, udir, q_old, friction), x0, self.solver, incr,
                                 self.newton, verbose)
         u, lam = self.split(res.x, udir)
-        fl = self.law.friction_law
-        law_state = fl.initial_state(self.n_c) if friction is None else friction
-        if self.n_c:
-            q = (self.Jcv @ u).reshape(self.n_c, self.dim)
-            s = q if q_old is None else q - q_old
-            s = s - np.einsum("fi,fi->f", s, self.c_normal)[:, None] * self.c_normal
-            law_state = fl.advance(law_state, s, 0.0)
+        law_state = self.advance_friction(friction, u, q_old, 0.0)
         return MechanicsState(u.reshape(-1, self.dim), self.face_values(lam), self.face_values(res.active_set), t,
                               res.iterations, res.residual, res.history,
                               {"loads": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear,

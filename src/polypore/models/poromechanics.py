@@ -945,8 +945,7 @@ class Poromechanics:
 
     def friction_state(self, st: PoroState) -> np.ndarray:
         """(n_c, k) the friction law's state of ``st`` (the law's initial state if it has none)."""
-        fl = self.mech.law.friction_law
-        return fl.initial_state(self.mech.n_c) if st.friction is None else st.friction
+        return self.mech.friction_state(st.friction)
 
     def friction_fields(self, st: PoroState) -> dict[str, np.ndarray]:
         """The friction law's state of ``st`` as named (n_ff,) face values (outputs; empty for a law
@@ -1089,11 +1088,7 @@ class Poromechanics:
         sflux = self.stabilisation_weights * self.stabilisation_jumps(p - old.p) / dt
         ap = self.aperture_of(u)
         flux_ap = np.maximum(ap, self.closed_aperture) if self._implicit is not None else old.aperture
-        # the friction law's state after the step, from the patches' step slip (tangential)
-        q_new = (mech.Jcv @ u.ravel()).reshape(mech.n_c, d)
-        dq = q_new - ctx.q_old
-        dq -= np.einsum("fi,fi->f", dq, mech.c_normal)[:, None] * mech.c_normal
-        friction = mech.law.friction_law.advance(ctx.friction_state, dq, dt)
+        friction = mech.advance_friction(ctx.friction_state, u, ctx.q_old, dt)
         new = PoroState(t, u, mech.face_values(lam), p, ap, np.asarray(mech.face_values(res.active_set), np.int8),
                         flux_ap, sflux, friction)
         self._last_settled = old.state is not None and np.array_equal(new.state, old.state)

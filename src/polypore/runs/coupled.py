@@ -239,14 +239,10 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             state, _ = march(schedule, state, step, on_step, accept=accept if limit is not None else None,
                              max_rejections=schedule.growth_cuts)
         except RunError as exc:
-            if model.mech.law.kind == "slip-weakening" and "Newton" in str(exc):
-                # a weakening fault can lose every quasi-static equilibrium near the last one: the
-                # slipping patch runs away (an earthquake), which no smaller step resolves
-                raise RunError(f"{exc}. With slip-weakening friction this is typically a frictional instability: "
-                               "the slipping patch outgrew its nucleation length (2a_c = 1.158 μ/((1 − ν) W), "
-                               "W = (friction − dynamic_friction) σ_n′ / critical_slip) and the fault has no "
-                               "quasi-static equilibrium near the last state (docs/contact.md, \"Slip-weakening\")"
-                               ) from None
+            # a Newton iteration that found no equilibrium with a softening friction law: say what it likely is
+            hint = model.mech.law.friction_law.instability_hint
+            if hint and "Newton" in str(exc):
+                raise RunError(f"{exc}. {hint}") from None
             raise
         bubble = bubble_slip(model, state, net)
         if bubble["faces"]:

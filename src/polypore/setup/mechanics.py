@@ -264,7 +264,8 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
     data = MechanicsData(mu=mu, lam=lam, displacement=tuple(disp), traction=tuple(trac), body_force=body_f,
                          matrix_pressure=pm_f, biot=sec.biot, fracture_pressure=pf_f, initial_stress=s0_f,
                          contact=ContactSpec(c.law, friction, threshold, c.beta, c.initial, c.patch_ratio,
-                                             {k: v for k, v in coeffs.items() if k not in ("friction", "threshold")}),
+                                             {k: v for k, v in coeffs.items()
+                                              if k not in ("friction", "threshold") and c.law in LAW_KEYS[k]}),
                          two_sided=sec.bubbles == "two-sided", bubble_side=sec.bubble_side, stabilisation=stab,
                          bubble_stabilisation=sec.bubble_stabilisation,
                          nodal_stabilisation=nodal,

@@ -281,16 +281,8 @@ def build_agglomerated(m, lower, upper, specs, interfaces):
     return agglomerate(base, keep, rounds=m.rounds, seed=m.seed)
 
 
-# ---- the generators that bring their own geometry: (case, spec, t0) -> FracturedMesh -----------
+# ---- the generators that bring their own geometry: (case, spec, t0) -> FracturedMesh ------------
 def build_file(case: CaseFile, spec, t0: float) -> FracturedMesh:
-    return _file_mesh(case, spec, t0)
-
-
-def build_cornerpoint(case: CaseFile, spec, t0: float) -> FracturedMesh:
-    return _cornerpoint_mesh(spec, t0)
-
-
-def _file_mesh(case: CaseFile, spec, t0: float) -> FracturedMesh:
     """A Gmsh file's mesh; its fractures are interior physical groups."""
     from ..mesh.msh import read_msh
 
@@ -404,7 +396,7 @@ def _selected_faults(spec, info) -> dict:
     return out
 
 
-def _cornerpoint_mesh(spec, t0: float) -> FracturedMesh:
+def build_cornerpoint(case: CaseFile, spec, t0: float) -> FracturedMesh:
     """A corner-point grid's mesh; the faults named by [[fractures]] become contact surfaces."""
     from ..mesh.cornerpoint import fractured_mesh, process_grid
 
