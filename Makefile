@@ -35,7 +35,7 @@ test: $(VENV)/.installed-test
 
 # The optional extras 'fast' (PARDISO through pypardiso, ~950 MB of MKL wheels) and 'amg', in a
 # venv of their own so that `make test` keeps testing the default install; the whole suite runs
-# with PARDISO as the 3D direct solver, and tests/test_fast_extra.py fails if it did not install.
+# with PARDISO as the 3D direct solver, and tests/unit/solvers/test_fast_extra.py fails if it did not install.
 VENV_FAST := .venv-fast
 BIN_FAST  := $(VENV_FAST)/bin
 
@@ -80,7 +80,7 @@ $(VENV_MPI)/.installed: pyproject.toml $(VENV_MPI)/.debian-petsc
 	touch $@
 
 test-mpi: $(VENV_MPI)/.installed
-	$(BIN_MPI)/python -m pytest -q tests/test_petsc_solvers.py tests/test_petsc_mpi.py
+	$(BIN_MPI)/python -m pytest -q tests/mpi/test_petsc_solvers.py tests/mpi/test_petsc_mpi.py
 
 clean:
 	rm -rf $(VENV) $(VENV_FAST) $(VENV_MPI) results build src/*.egg-info

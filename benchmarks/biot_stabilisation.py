@@ -9,7 +9,7 @@ stabilisation of the coupled scheme (models/poromechanics.py, "Pressure stabilis
    step Δt = θ h²/c_v from rest for θ = 1 … 10⁻³ (h = mean |K|^{1/d}). The exact pressure is
    at most the undrained p_u = b M σ/(K_d + b² M) everywhere; the overshoot is
    max_θ max_K (p_K − p_u)/p_u, and ``min`` is min_θ min_K p_K/p_u − 1 (the drained layer).
-2. **Terzaghi.** The same column, 1D series solution (as in tests/test_poromechanics.py):
+2. **Terzaghi.** The same column, 1D series solution (as in tests/cases/test_poromechanics.py):
    Cartesian column 0.1 × 1 one cell wide (ny = 10, 20, 40) and triangles on 0.2 × 1
    (size 0.1, 0.05, 0.025). First step 10⁻⁶ T_c (undrained), then Δt ∝ h² (50, 200, 800 steps
    to 0.5 T_c, T_c = H²/c_v). Errors of p_K against the series at the cell centroids, relative to p_u:

@@ -6,7 +6,7 @@ A 4 × 2 × 4 corner-point grid of 100 m × 100 m × 25 m cells with a vertical 
 i = 2 whose throw t leaves fault faces of heights t and 25 − t (no snapping); β
 (:func:`polypore.models.inf_sup.inf_sup_constant`) for the bubble stabilisations "cell" (the scheme's
 h_K^{d−2}) and "face" (|σ|²/|K|, the default), with one multiplier per face and with patches (0.2).
-tests/test_contact_patches.py asserts the same family.
+tests/unit/discretisation/test_contact_patches.py asserts the same family.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """Random mutations of the built-in case files and of ``--set`` overrides, run through load and
-set-up (tests/test_fuzz_casefiles.py, benchmarks/fuzz_casefiles.py).
+set-up (tests/unit/setup/test_fuzz_casefiles.py, benchmarks/fuzz_casefiles.py).
 
 A mutation changes a value anywhere in the case (wrong types, out-of-range numbers, random
 expressions with huge exponents and divisions by zero), deletes a key or a table, adds an

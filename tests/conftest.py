@@ -1,7 +1,16 @@
 import functools
+import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
+
+# Tiers (unit/<layer>, exactness, convergence, cases, mpi, structure) share a few helpers by
+# importing one test module from another (test_cornerpoint's grids, test_poromechanics' Terzaghi
+# constants): every tier folder is importable, as the flat folder was. Test module names stay unique.
+for _tier in sorted({p.parent for p in Path(__file__).parent.rglob("test_*.py")}):
+    if str(_tier) not in sys.path:
+        sys.path.append(str(_tier))
 
 # A 2D static contact case on a 4 × 4 grid that loads in milliseconds (input-check tests)
 STATIC_2D = """

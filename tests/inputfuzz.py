@@ -1,6 +1,6 @@
 """Fuzzing of everything a user hands polypore besides the case's values (issue 25): GRDECL files,
 Gmsh ``.msh`` files, the TOML text of a case file itself, and the file system around a run
-(tests/test_fuzz_inputs.py, benchmarks/fuzz_inputs.py; the case-file value mutations are
+(tests/unit/setup/test_fuzz_inputs.py, benchmarks/fuzz_inputs.py; the case-file value mutations are
 tests/casefuzz.py).
 
 Every example carries its verdict: ``refuse`` (the input is broken: the only right outcome is an

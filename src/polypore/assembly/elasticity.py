@@ -103,7 +103,7 @@ def elasticity_matrix(ops, mu: np.ndarray, lam: np.ndarray, stab_scale: float = 
     strips of corner-point faults h_K^{d−2} makes the bubble stiffer than the cell by up to
     |K| h_K^{d−2}/|σ|² (10³–10¹² there), so that the face's multiplier cannot be controlled:
     the discrete inf-sup constant falls like √(|σ|/A_K) with "cell" and stays at its
-    regular-face value with "face" (tests/test_contact_patches.py, docs/contact_patches.md).
+    regular-face value with "face" (tests/unit/discretisation/test_contact_patches.py, docs/contact_patches.md).
     """
     mesh = ops.space.fm.mesh
     d = mesh.dim

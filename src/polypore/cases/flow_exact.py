@@ -15,7 +15,7 @@ Exchange on Γ₁ holds exactly: −κ∂ₓp⁺ = Λ(p⁺ − p_f1) = −κ a�
 κ q (a⁻ − a⁺). On Γ₂, q = q' = 0 and ∂_ζ P = 0: no jump, no exchange, p_f2 is the matrix
 trace, ∂ₛ p_f2 = 0 at the tip (no-flow) and at the junction, where p_f1 = p_f2. Sources:
 h_m = −κΔp±, h_f1 = −C Δ_τ p_f1 − κ q (a⁻ − a⁺), h_f2 = −C Δ_τ p_f2 (derived by hand,
-checked by finite differences in tests/test_flow_convergence.py).
+checked by finite differences in tests/convergence/test_flow_convergence.py).
 
 All quantities are dimensionless in the built-in cases (K_m = η = 1); in SI units pressures
 are in Pa, κ in m²/(Pa·s), Λ in m/(Pa·s), C in m³/(Pa·s).

@@ -67,7 +67,7 @@ moves along the shear traction S n⁺ it exerts on the other side (simple shear)
 −(σ n⁺ + p n⁺): on a closed face λ_n = −q, and λ_τ = −F λ_n τ̂ (sliding) or −τ
 (sticking); on an open face λ = 0.
 
-*Checks* (``tests/test_penny.py``). The near-front expansions of w and Δu_τ give, through
+*Checks* (``tests/cases/test_penny.py``). The near-front expansions of w and Δu_τ give, through
 the plane-strain (modes I, II) and antiplane (mode III) crack-tip fields, Sneddon's
 K_I = 2 q √(a/π) and Kassir & Sih's K_II = 4 |t| √(a/π) cos θ/(2 − ν),
 K_III = 4 (1 − ν) |t| √(a/π) sin θ/(2 − ν) (θ from t̂ in the crack plane): both shear modes

@@ -17,7 +17,7 @@ faces that reach it alone stay their own patch (regular meshes are untouched). T
 conditions are exact per multiplier, on the patch-mean jump [[u]]_P = Σ_{σ∈P} |σ| [[u]]_σ / |P|,
 and the equilibrium coupling Σ_P |P| λ_P·[[v]]_P = Σ_σ |σ| λ_{P(σ)}·[[v]]_σ keeps the discrete
 energy identity with λ_σ := λ_{P(σ)}. The patch multipliers are a subspace of the face-wise ones,
-so their inf-sup constant is at least as large (tests/test_contact_patches.py measures both).
+so their inf-sup constant is at least as large (tests/unit/discretisation/test_contact_patches.py measures both).
 
 A patch also joins a neighbour while it is **narrower** than ``ratio`` × the thickness of the
 thicker cell at its faces (width |P| / diam_P^{d−2}, thickness t_K = |K| / K's largest face): the

@@ -21,7 +21,7 @@ Why face bubbles in 3D: the mean over a triangle of a P2 trace sees its edge mid
 an interior fracture edge. A multiplier with λ_σ = −λ_σ' on every pair of faces sharing an
 edge is then orthogonal to every face-mean jump; it exists when the dual graph of the fracture
 triangulation is bipartite (every interior vertex of even degree), as on structured meshes
-(tests/test_quadratic.py builds one). The bubble gives each face its own control of its jump.
+(tests/unit/discretisation/test_quadratic.py builds one). The bubble gives each face its own control of its jump.
 In 2D the face is an edge whose midpoint slot is split per side and carries weight 2/3 in the
 face mean (1/6 at the vertices): each face already controls its own jump, so there is no bubble.
 """

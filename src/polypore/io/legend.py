@@ -4,7 +4,7 @@ error measures of summary.json and the contact-state codes, in one place.
 Every run writes this legend into its folder, as ``summary.json``'s ``legend`` and as
 ``README.txt`` (issue 25: names like ``lambda_n_h12`` and an integer ``state`` appeared without
 a word of what they are). docs/outputs.md is the same text for readers of the documentation;
-tests/test_legend.py checks that every name a run writes is described here.
+tests/unit/io/test_legend.py checks that every name a run writes is described here.
 """
 
 from __future__ import annotations
@@ -70,7 +70,7 @@ CSV = {
     "p_f": FRACTURES["p_f"] + " (empty in mechanics runs)",
 }
 assert set(CSV) == set(CSV_COLUMNS)
-# the arrays each run driver writes besides region / fracture / normal (tests/test_legend.py
+# the arrays each run driver writes besides region / fracture / normal (tests/unit/io/test_legend.py
 # compares them with the files)
 POROMECHANICS_ARRAYS = (("pressure", "overpressure", "displacement", "effective_stress", "total_stress"),
                         ("jump", "jump_n", "jump_t", "lambda", "lambda_n", "lambda_t", "state", "aperture", "p_f",

@@ -3,7 +3,7 @@
 Each entry says which ``[mesh]`` keys the generator reads (the schema refuses the others), which
 function of `setup/` builds its mesh and which estimates its cell count before it is built
 (`limits.py`: the size check and the automatic solver choice). A new generator is an entry here
-and its two functions; `tests/test_generators_registry.py` checks that every entry resolves, so
+and its two functions; `tests/unit/setup/test_generators_registry.py` checks that every entry resolves, so
 a generator without an estimate is an error, not a silent NaN.
 
 The functions are named, not imported, so that the schema can read the keys without loading the

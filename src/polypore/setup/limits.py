@@ -1,7 +1,7 @@
 """Resource guards: the cells, unknowns, time steps and memory a case will need, estimated from
 the case file before any work starts, and refused when beyond the machine or sane bounds.
 
-The estimates are rough (within a factor 2 of the built-in meshes, tests/test_limits.py) but
+The estimates are rough (within a factor 2 of the built-in meshes, tests/unit/setup/test_limits.py) but
 cheap: cells from the domain's measure and the mesh sizes (a graded simplicial mesh has about
 c_d/h(r)^d cells per unit measure, h growing from the fracture size by ``grading`` per unit
 distance r from the fracture; a corner-point grid's nx·ny·nz from its header or ``mesh.cells``,
@@ -124,7 +124,7 @@ def _front_tubes(edges, h: float, tip_size: float, gamma: float) -> float:
     and floored at tip_size: at tip_size = 1e-7 m over 1500 layers per edge, where a spacing of
     ``h`` would say 2), each prism split into 3 tetrahedra. The slab's core and the fill's first
     cells next to the tubes add 80 % (calibrated on cube-slip-3d's meshes: the whole estimate
-    within 1.1–1.5× of the cells made, tests/test_limits.py)."""
+    within 1.1–1.5× of the cells made, tests/unit/setup/test_limits.py)."""
     rho = RING_RADIUS * h
     tip = min(tip_size, rho)
     K = len(ring_radii(rho, tip, gamma))

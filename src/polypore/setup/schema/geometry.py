@@ -11,7 +11,7 @@ from pydantic import Field, model_validator
 from ..generators import REGISTRY
 from .types import Expr, Positive, Table, Text, choice, fail, number, points, vector
 
-# polypore.mesh.generators.mirror.MODES (importing it would load gmsh; tests/test_schema.py compares)
+# polypore.mesh.generators.mirror.MODES (importing it would load gmsh; tests/unit/setup/test_schema.py compares)
 MIRROR_MODES = ("none", "tips", "fractures")
 FRONTS = ("isotropic", "anisotropic")     # crack-front cells of the simplicial generator (3D)
 CORNERPOINT = ("grdecl", "cornerpoint")   # corner-point grids (docs/cornerpoint.md): 3D, faults from the grid

@@ -248,7 +248,7 @@ def _run_cli(args, env_extra, tty):
     import sys
 
     env = {**os.environ, **env_extra, "COLUMNS": "300"}
-    env["PYTHONPATH"] = os.pathsep.join([str(__import__("pathlib").Path(__file__).parents[1] / "src"),
+    env["PYTHONPATH"] = os.pathsep.join([str(__import__("pathlib").Path(__file__).parents[3] / "src"),
                                          env.get("PYTHONPATH", "")])
     cmd = [sys.executable, "-m", "polypore", *args]
     if not tty:

@@ -9,7 +9,7 @@ import pytest
 from polypore.core.errors import InputError
 from polypore.mesh.cornerpoint import FaultSpec, generate_grid, process_grid, read_grdecl, write_grdecl
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "grdecl"
+DATA = Path(__file__).resolve().parents[4] / "shared" / "data" / "grdecl"
 if not DATA.is_dir():                                   # the data set lives next to the repository
     DATA = Path("/work/shared/data/grdecl")
 

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 FILES = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
 BLOCKS = [(f, k, code) for f in FILES
           for k, code in enumerate(re.findall(r"```python\n(.*?)```", f.read_text(), flags=re.S))]

@@ -83,7 +83,7 @@ def test_every_error_measure_is_described():
 def test_docs_outputs_lists_every_name():
     from pathlib import Path
 
-    doc = (Path(__file__).resolve().parents[1] / "docs" / "outputs.md").read_text()
+    doc = (Path(__file__).resolve().parents[3] / "docs" / "outputs.md").read_text()
     for name in [*BULK, *FRACTURES, *CSV, *ERRORS]:
         assert f"`{name}`" in doc, name
     assert all(f"{k} {v}" in doc for k, v in STATES.items())

@@ -10,7 +10,7 @@ import pytest
 from polypore.mesh.cornerpoint import CornerPointGrid, FaultSpec, generate_grid, process_grid, read_grdecl
 from polypore.mesh.cornerpoint.nodes import SNAP
 
-EMERALD = Path(__file__).resolve().parents[1] / "src" / "polypore" / "cases" / "data" / "emerald.grdecl"
+EMERALD = Path(__file__).resolve().parents[3] / "src" / "polypore" / "cases" / "data" / "emerald.grdecl"
 SHARED = Path("/work/shared/data/grdecl")
 OPTIONS = [(snap, face) for snap in (0.0, SNAP) for face in ("centre", "diagonal", "keep")]
 

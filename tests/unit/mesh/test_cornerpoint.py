@@ -20,7 +20,7 @@ from polypore.models.flow import FlowData, FlowModel, Pressure
 from polypore.solvers.linear import LinearSolver
 from polypore.models.mechanics import ContactMechanics, ContactSpec, DisplacementBC, MechanicsData
 
-DATA = Path(__file__).resolve().parents[2] / "shared" / "data" / "grdecl"
+DATA = Path(__file__).resolve().parents[4] / "shared" / "data" / "grdecl"
 if not DATA.is_dir():
     DATA = Path("/work/shared/data/grdecl")
 FILES = sorted(p.name for p in DATA.iterdir() if p.suffix.lower() == ".grdecl")

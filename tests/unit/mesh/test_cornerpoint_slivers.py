@@ -22,7 +22,7 @@ from test_cornerpoint import DATA, FILES, assert_closed_cells, check_exactness, 
 
 FREE = dict(max_volume_change=np.inf)          # the snapping without the volume bound (before issue 24)
 
-EMERALD = Path(__file__).resolve().parents[1] / "src" / "polypore" / "cases" / "data" / "emerald.grdecl"
+EMERALD = Path(__file__).resolve().parents[3] / "src" / "polypore" / "cases" / "data" / "emerald.grdecl"
 
 
 def sliver_grid(throw=20.3, named=True):
