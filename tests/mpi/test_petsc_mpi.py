@@ -140,7 +140,7 @@ def test_each_rank_assembles_exactly_its_rows_of_the_serial_system(tmp_path):
     script = tmp_path / "assembly.py"
     script.write_text(ASSEMBLY)
     env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": os.pathsep.join(
-        [os.path.join(os.path.dirname(__file__), "..", "..",  "src"), os.environ.get("PYTHONPATH", "")])}
+        [os.path.join(os.path.dirname(__file__), "..", "..", "src"), os.environ.get("PYTHONPATH", "")])}
     p = subprocess.run([mpiexec, "--allow-run-as-root", "--oversubscribe", "-n", "2", sys.executable, str(script)],
                        capture_output=True, text=True, timeout=600, env=env)
     assert p.returncode == 0, p.stderr[-3000:]
@@ -156,7 +156,7 @@ def test_each_rank_assembles_exactly_its_rows_of_the_serial_system(tmp_path):
 
 
 # ---- distributed runs: `mpiexec -n 2 polypore run CASE` against the serial run (docs/parallel.md) ----
-sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..",  "benchmarks"))
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "..", "benchmarks"))
 
 RUNS = {
     # static contact, 2D (direct: SuperLU serially, MUMPS on 2 ranks) and 3D (block-petsc: the
@@ -188,7 +188,7 @@ RUNS = {
 
 def _polypore(args, out, ranks=None):
     env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": os.pathsep.join(
-        [os.path.join(os.path.dirname(__file__), "..", "..",  "src"), os.environ.get("PYTHONPATH", "")])}
+        [os.path.join(os.path.dirname(__file__), "..", "..", "src"), os.environ.get("PYTHONPATH", "")])}
     cmd = [sys.executable, "-m", "polypore", "run", *args, "--out", str(out)]
     if ranks:
         cmd = [shutil.which("mpiexec"), "--allow-run-as-root", "--oversubscribe", "-n", str(ranks), *cmd]
@@ -244,7 +244,7 @@ def test_mpiexec_without_petsc_is_one_line_exit_2(tmp_path):
         sys.exit(main(["run", "six-fractures-static", "--out", sys.argv[1]]))
     """)
     env = {**os.environ, "OMPI_COMM_WORLD_SIZE": "2", "PYTHONPATH": os.pathsep.join(
-        [os.path.join(os.path.dirname(__file__), "..", "..",  "src"), os.environ.get("PYTHONPATH", "")])}
+        [os.path.join(os.path.dirname(__file__), "..", "..", "src"), os.environ.get("PYTHONPATH", "")])}
     p = subprocess.run([sys.executable, "-c", code, str(tmp_path / "out")], capture_output=True, text=True,
                        timeout=120, env=env)
     assert p.returncode == 2, p.stderr
@@ -275,7 +275,7 @@ def test_an_error_on_one_rank_stops_every_rank(tmp_path):
         sys.exit(main(["run", "cornerpoint-injection", "--set", "time.end=86400", "--out", sys.argv[1]]))
     """)
     env = {**os.environ, "OMP_NUM_THREADS": "1", "PYTHONPATH": os.pathsep.join(
-        [os.path.join(os.path.dirname(__file__), "..", "..",  "src"), os.environ.get("PYTHONPATH", "")])}
+        [os.path.join(os.path.dirname(__file__), "..", "..", "src"), os.environ.get("PYTHONPATH", "")])}
     base = [mpiexec, "--allow-run-as-root", "--oversubscribe", "-n", "2", sys.executable, "-c", code]
     p = subprocess.run(base + [str(tmp_path / "one"), "1"], capture_output=True, text=True, timeout=300, env=env)
     assert p.returncode == 2, p.stderr[-2000:]
