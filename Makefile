@@ -31,6 +31,7 @@ LINTED := src/polypore/solvers src/polypore/models src/polypore/assembly src/pol
 
 test: $(VENV)/.installed-test
 	$(BIN)/ruff check $(LINTED)
+	$(BIN)/mypy $(LINTED)
 	$(BIN)/python -m pytest -q -n 2
 
 # The optional extras 'fast' (PARDISO through pypardiso, ~950 MB of MKL wheels) and 'amg', in a

@@ -19,7 +19,7 @@ from polypore.models.mechanics import ContactMechanics
 from polypore.setup.casefile import load_case
 from polypore.setup.mechanics import mechanics_setup
 from polypore.setup.meshing import build_fractured_mesh
-from polypore.solvers.linear import LinearSolver
+from polypore.solvers.factory import SolverChoice
 
 
 def main():
@@ -37,7 +37,7 @@ def main():
     t1 = time.perf_counter()
     setup = mechanics_setup(case, fm)
     t2 = time.perf_counter()
-    problem = ContactMechanics(fm, setup.data, LinearSolver(args.linear), setup.newton)
+    problem = ContactMechanics(fm, setup.data, SolverChoice(args.linear), setup.newton)
     t3 = time.perf_counter()
     st = problem.solve(verbose=True)
     t4 = time.perf_counter()

@@ -39,6 +39,7 @@ from polypore.mesh.cornerpoint import BOUNDARY_NAMES, FaultSpec, generate_grid, 
 from polypore.models.flow import FlowData, FlowModel, Pressure
 from polypore.models.mechanics import ContactMechanics, ContactSpec, DisplacementBC, MechanicsData
 from polypore.runs.convergence import fit_rate
+from polypore.solvers.factory import SolverChoice
 from polypore.solvers.linear import LinearSolver
 
 L = 1000.0
@@ -109,7 +110,7 @@ def solve(n: int, a: float, stabs, flow: bool, linear: str):
                              displacement=tuple(DisplacementBC(b, (0, 1, 2), u) for b in names), body_force=f,
                              contact=ContactSpec("coulomb", 1.0, 0.0), stabilisation=s)
         t0 = time.perf_counter()
-        P = ContactMechanics(fm, data, solver=LinearSolver(linear))
+        P = ContactMechanics(fm, data, solver=SolverChoice(linear))
         st = P.solve(verbose=False)
         Gh = P.gradients(st)
         xc = g.cell_centroid

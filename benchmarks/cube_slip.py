@@ -223,15 +223,11 @@ def reference_grid(n: int = 121) -> tuple[np.ndarray, np.ndarray]:
 
 def p2_jump_on_grid(problem, u: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The P2 jump [[u]](x) (na, nb, 3) at the points ORIGIN + a E1 + b E2 of the fracture: each
-    point located in its fracture face, the traces of both sides and the face bubble evaluated
-    there (the field of ``QuadraticSpace.jump_quadrature`` at arbitrary points). Edge points
-    are moved 1e-9 m inside."""
-    import scipy.sparse as sparse
+    point located in its fracture face, where ``QuadraticSpace.jump_at`` evaluates the traces of
+    both sides and the face bubbles. Edge points are moved 1e-9 m inside."""
     from matplotlib.tri import Triangulation
 
-    from polypore.discretisation.quadratic import BUBBLE_SCALE, FACE_EDGES
-
-    space, mesh, net = problem.space, problem.fm.mesh, problem.fm.network
+    mesh, net = problem.fm.mesh, problem.fm.network
     F = mesh.face_nodes.values.reshape(mesh.n_faces, 3)[net.faces]                # (n_ff, 3)
     used, local = np.unique(F, return_inverse=True)
     R = mesh.nodes[used] - ORIGIN
@@ -246,18 +242,7 @@ def p2_jump_on_grid(problem, u: np.ndarray, a: np.ndarray, b: np.ndarray) -> np.
     M = np.stack([T[:, 1] - T[:, 0], T[:, 2] - T[:, 0]], axis=2)                # (n, 2, 2)
     l12 = np.linalg.solve(M, (np.stack([x, y], axis=1) - T[:, 0])[..., None])[..., 0]
     L = np.column_stack([1.0 - l12.sum(axis=1), l12])                           # face_nodes order
-    fe = FACE_EDGES[3]
-    phi = np.concatenate([L * (2 * L - 1), 4 * L[:, fe[:, 0]] * L[:, fe[:, 1]]], axis=1)   # (n, 6)
-    jump = np.zeros((x.size, 3))
-    for cells, sign in ((net.plus_cell, 1.0), (net.minus_cell, -1.0)):
-        vs, es = space.face_slots(net.faces[k], cells[k])
-        slots = np.concatenate([vs, es], axis=1)
-        jump += sign * np.einsum("nj,njc->nc", phi, u[slots])
-    Bm = sparse.csr_array((space.bubble_sign.astype(float),
-                           (space.bubble_face, space.n_point_slots + np.arange(space.n_bubbles))),
-                          shape=(net.n_faces, space.n_slots))
-    jump += (BUBBLE_SCALE * np.prod(L, axis=1))[:, None] * (Bm @ u)[k]
-    return jump.reshape(a.size, b.size, 3)
+    return (problem.space.jump_at(k, L) @ u).reshape(a.size, b.size, 3)
 
 
 def _penny_field_errors(exact, X, W, q, n) -> dict:

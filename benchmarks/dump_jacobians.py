@@ -36,9 +36,19 @@ class Recorder:
 
     @property
     def iterations(self):
-        # the block solvers keep a list; LinearSolver keeps it in its stats
-        inner = self.inner
-        return inner.iterations if hasattr(inner, "iterations") else inner.stats.iterations
+        return self.inner.krylov_iterations
+
+    krylov_iterations = iterations
+
+    @property
+    def backend(self) -> str:
+        return self.inner.backend
+
+    def release(self) -> None:
+        self.inner.release()
+
+    def set_pressure_nullspace(self, b) -> None:
+        self.pressure_nullspace = b
 
     @property
     def takes_target(self):
@@ -49,7 +59,7 @@ class Recorder:
     @property
     def takes_blocks(self):
         """As the inner solver: the model hands it the Jacobian by blocks (saved assembled)."""
-        return getattr(self.inner, "takes_blocks", False)
+        return self.inner.takes_blocks
 
     def solve(self, J, rhs, target=None):
         self.k += 1
@@ -62,11 +72,9 @@ class Recorder:
             if target is not None and target.weights is not None:
                 np.save(self.out / f"w_{tag}.npy", np.asarray(target.weights))
                 np.save(self.out / f"eta_{tag}.npy", np.asarray(target.rtol))
-        if hasattr(self.inner, "pressure_nullspace"):
-            self.inner.pressure_nullspace = self.pressure_nullspace
+        self.inner.set_pressure_nullspace(self.pressure_nullspace)
         t0, c0 = time.perf_counter(), time.process_time()
-        x = (self.inner.solve(J, rhs, target=target) if getattr(self.inner, "takes_target", False)
-             else self.inner.solve(J, rhs))
+        x = self.inner.solve(J, rhs, target=target) if self.inner.takes_target else self.inner.solve(J, rhs)
         its = self.iterations
         self.log.append({"tag": tag, "step": self.step, "newton": self.k, "saved": self.step in self.save,
                          "krylov": int(its[-1]) if its else None, "seconds": time.perf_counter() - t0,
@@ -102,7 +110,7 @@ def main(argv=None) -> int:
     np.savez(out / "meta.npz", n_u=mech.free.size, d=model.dim, n_l=mech.n_c * model.dim, scale=cond.scale,
              normal=cond.normal, rho=cond.rho, near_nullspace=mech.rigid_modes(), cells=fm.mesh.n_cells,
              cell_volume=fm.mesh.geometry.cell_volume,
-             flow_kind=model._flow_kind, **extra)
+             flow_kind=model.unknowns.kind, **extra)
     rec = Recorder(model.solver, out, set(args.steps))
     model.solver = rec
     print(f"set up {fm.mesh.n_cells} cells, {model.n_unknowns} unknowns in {time.perf_counter() - t0:.1f} s",

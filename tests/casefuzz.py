@@ -259,7 +259,6 @@ def _mesh(case: CaseFile):
 
 def set_up(case: CaseFile) -> None:
     """Validate, guard, mesh and set the case up to its model objects (no solve)."""
-    from polypore.models.mechanics import ContactMechanics
     from polypore.setup.flow import flow_setup
     from polypore.setup.mechanics import mechanics_setup
     from polypore.setup.poromechanics import monitor_points, poro_setup
@@ -269,8 +268,7 @@ def set_up(case: CaseFile) -> None:
     fm = _mesh(case)
     model = case_model(case)
     if model == "mechanics":
-        s = mechanics_setup(case, fm)
-        ContactMechanics(fm, s.data, s.solver, s.newton)
+        mechanics_setup(case, fm).problem(fm)          # as runs/static.py
     elif model == "flow":
         flow_setup(case, fm).model()
     else:

@@ -143,13 +143,13 @@ def test_case_keys_are_validated(tmp_path):
 
 def test_fractures_it_cannot_mesh_are_refused():
     sq = lambda z, lo=0.3, hi=0.7: np.array([[lo, lo, z], [hi, lo, z], [hi, hi, z], [lo, hi, z]])  # noqa: E731
-    with pytest.raises(InputError, match=r"^fractures.L: .*convex"):
+    with pytest.raises(InputError, match=r"^fracture L: .*convex"):
         V = np.array([[0.2, 0.2, 0.5], [0.8, 0.2, 0.5], [0.8, 0.8, 0.5], [0.5, 0.5, 0.5], [0.2, 0.8, 0.5]])
         front_mesh([0, 0, 0], [1, 1, 1], [FractureSpec("L", V)], 0.5, fracture_size=0.2, tip_size=0.01)
-    with pytest.raises(InputError, match=r"^fractures.B: is too close to the box boundary"):
+    with pytest.raises(InputError, match=r"^fracture B: is too close to the box boundary"):
         front_mesh([0, 0, 0], [1, 1, 1], [FractureSpec("B", sq(0.5, 0.0, 1.0))], 0.5, fracture_size=0.2,
                    tip_size=0.01)
-    with pytest.raises(InputError, match=r"^fractures: fractures 'A' and 'C' are too close"):
+    with pytest.raises(InputError, match=r"^fracture: fractures 'A' and 'C' are too close"):
         front_mesh([0, 0, 0], [1, 1, 1], [FractureSpec("A", sq(0.45)), FractureSpec("C", sq(0.5))], 0.5,
                    fracture_size=0.2, tip_size=0.01)
     # two fractures far enough apart are meshed, each with its slab

@@ -7,7 +7,6 @@ import pytest
 from conftest import CORNERPOINT_MESH, case
 
 from polypore.core.errors import InputError
-from polypore.models.mechanics import ContactMechanics
 from polypore.setup.flow import flow_setup
 from polypore.setup.mechanics import mechanics_setup
 from polypore.setup.meshing import build_fractured_mesh
@@ -170,5 +169,5 @@ def test_slip_weakening_coefficients_per_fault(tmp_path):
     c = case(tmp_path, text.replace("dynamic_friction = 0.4", "dynamic_friction = 0.7"), name="e.toml")
     fm = build_fractured_mesh(c)
     with pytest.raises(InputError) as e:
-        ContactMechanics(fm, mechanics_setup(c, fm).data)
+        mechanics_setup(c, fm).problem(fm)
     assert e.value.field == "contact.dynamic_friction" and "must not exceed the static friction" in str(e.value)

@@ -120,7 +120,7 @@ def test_the_predictor_extrapolates_the_last_increment_within_its_reach():
     assert P._predicted_start(st3, dt, ctx) is None
     without, _ = P.step(st3, dt)
     assert np.allclose(with_pred.p, without.p, rtol=1e-9, atol=1e-9 * p0)
-    with pytest.raises(InputError, match="solver.predictor"):
+    with pytest.raises(InputError, match="^predictor:"):
         Poromechanics(P.fm, None, None, predictor="quadratic")
 
 

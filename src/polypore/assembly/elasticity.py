@@ -23,8 +23,8 @@ def interleave(blocks, d: int) -> sp.csr_array:
     Built as a block-sparse (d × d blocks) matrix on the union of the blocks' patterns, then
     converted: an entry absent from its block is an explicit zero there and is dropped, so the
     result is the coordinate assembly's, entry for entry. The coordinate assembly (three nnz-long
-    arrays per block, concatenated, then converted) peaked at 7 × the result on the 10⁵-cell
-    weak-scaling grid (+2.1 GB for a 0.3 GB matrix).
+    arrays per block, concatenated, then converted) peaked at several times the result
+    (docs/iterative_cornerpoint.md, fifth session).
     """
     mats = {}
     n = None
@@ -39,6 +39,7 @@ def interleave(blocks, d: int) -> sp.csr_array:
     for B in mats.values():
         one = sp.csr_array((np.ones(B.nnz), B.indices, B.indptr), shape=B.shape)
         U = one if U is None else U + one
+    assert U is not None and n is not None          # d ≥ 1: mats has d² blocks
     U.sort_indices()
 
     ku = csr_keys(U)

@@ -39,3 +39,8 @@ class MeshError(InputError):
 
 class RunError(PolyporeError):
     """A run that failed after its input was accepted (exit status 1)."""
+
+    # what a failed attempt cost, set (when known) by the Newton loop and the model that gave up;
+    # read with getattr by runs/march.py
+    newton_iterations: int | None
+    linear_iterations: int | None

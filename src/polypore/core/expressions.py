@@ -232,10 +232,10 @@ def _check_params(params, field: str, used: set, extra: tuple) -> None:
                 else "a constant in expressions" if name in CONSTANTS
                 else f"a variable of {field}, which uses it" if name in extra and name in used else None)
         if what:
-            raise InputError(f"parameters.{name}", f"the name {name!r} is {what}; rename the parameter (names "
+            raise InputError(f"params.{name}", f"the name {name!r} is {what}; rename the parameter (names "
                              f"taken: {_allowed()}" + (f"; in {field} also {', '.join(extra)}" if extra else "") + ")")
         if not name.isidentifier() or keyword.iskeyword(name):
-            raise InputError(f"parameters.{name}", f"{name!r} cannot be used in an expression; allowed: names of "
+            raise InputError(f"params.{name}", f"{name!r} cannot be used in an expression; allowed: names of "
                              "letters, digits and _ that do not start with a digit")
 
 

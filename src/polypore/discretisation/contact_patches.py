@@ -7,7 +7,7 @@ with the face, and the constant scales like √(|σ| / A_K), A_K = |K| / w_K the
 the cell normal to σ (w_K: its extent along n_σ). On shape-regular meshes |σ| / A_K ≥ 1/3; on
 corner-point faults, where faces are overlaps of displaced columns, it falls to 10⁻³ on slivers
 and thin strips, and the multipliers there picked up tractions no stress path produces
-(docs/contact_patches.md: 13.6× the overpressure on Emerald, 5,300× without snapping).
+(docs/contact_patches.md, on Emerald).
 
 Two cures, both on by default: the bubbles' stabilisation weighted by |σ|²/|K|
 (:func:`~polypore.assembly.elasticity.elasticity_matrix`), which keeps the constant on its own,

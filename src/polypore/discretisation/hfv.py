@@ -57,7 +57,7 @@ def hfv_local_matrices(centre, volume, vector_area, face_point, conductivity, di
     dist = np.einsum("ksi,ksi->ks", X, n)                            # d_Kσ
     if np.any(dist <= 0):
         k = int(np.argwhere(dist <= 0)[0, 0])
-        raise MeshError("mesh.cells", f"HFV needs every face plane to be at a positive distance from the cell "
+        raise MeshError("cells", f"HFV needs every face plane to be at a positive distance from the cell "
                         f"centroid; cell batch entry {k} has d_Kσ = {dist[k].min():.3e} m (a strongly non-convex "
                         "cell whose centroid lies outside or on a face plane)")
     w = area * dist / dim                                            # |σ| d_Kσ / d'
@@ -325,7 +325,7 @@ def cell_points(mesh, margin: float = 0.05) -> np.ndarray:
             res = linprog(np.r_[np.zeros(mesh.dim), -1.0], A_ub=np.c_[N, np.ones(len(b))], b_ub=b,
                           bounds=[(None, None)] * mesh.dim + [(0, None)], method="highs")
             if not res.success or res.x[-1] <= 1e-9 * scale[k]:
-                raise MeshError("mesh.cells", f"cell {k} is not star-shaped with respect to any interior point "
+                raise MeshError("cells", f"cell {k} is not star-shaped with respect to any interior point "
                                 "(no point at a positive distance from all its face planes): HFV cannot use it")
             xK[k] = res.x[:-1]
     return xK
@@ -383,7 +383,7 @@ def fracture_cells(mesh, network) -> FractureCells:
     pos = np.searchsorted(ekeys[order], keys)
     edge = order[np.minimum(pos, len(order) - 1)]
     if not np.array_equal(ekeys[edge], keys):
-        raise MeshError("fractures", "fracture faces and fracture edges disagree (internal error)")
+        raise MeshError("network", "fracture faces and fracture edges disagree (internal error)")
     return FractureCells(Ragged(sub.offsets, edge.astype(INDEX)), A, P, centre, g.face_area[faces])
 
 

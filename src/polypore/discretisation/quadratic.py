@@ -109,7 +109,7 @@ class QuadraticSpace(SlotCounts):
         cn = mesh.cell_nodes
         bad = (cn.counts != d + 1) | (mesh.cell_faces.counts != d + 1)
         if np.any(bad):
-            raise InputError("mechanics.order", f"order 2 (quadratic displacements) needs a simplicial mesh "
+            raise InputError("order", f"order 2 (quadratic displacements) needs a simplicial mesh "
                              f"({'triangles' if d == 2 else 'tetrahedra'}); {int(bad.sum())} of {nc} cells are "
                              "other polytopes: use mesh.generator = \"simplicial\" or order 1")
         cnodes = cn.values.reshape(nc, d + 1)
@@ -260,6 +260,37 @@ class QuadraticSpace(SlotCounts):
         vals = (self.bubble_sign[:, None] * BUBBLE_SCALE * np.prod(L, axis=1)).ravel()
         B = sp.csr_array((vals, (rows, cols)), shape=Vp.shape)
         return P, W, (Vp - Vm + B).tocsr()
+
+    def jump_at(self, ff: np.ndarray, L: np.ndarray) -> sp.csr_array:
+        """The jump [[v]](x) at arbitrary points of fracture faces: the field of
+        :meth:`jump_quadrature` (P2 traces of both sides and the face bubbles) at given points.
+
+        Parameters
+        ----------
+        ff : (k,) int, the fracture face (index into ``fm.network.faces``) holding each point
+        L : (k, d) barycentric coordinates of each point in its face (``face_nodes`` order)
+
+        Returns
+        -------
+        values : csr (k, n_slots), row i: v ↦ [[v]] at point i (one component: apply to (n_slots, d))
+        """
+        net = self.fm.network
+        ff = np.asarray(ff, np.int64)
+        L = np.asarray(L, float)
+        k, fe = L.shape[0], FACE_EDGES[self.dim]
+        phi = np.concatenate([L * (2 * L - 1), 4 * L[:, fe[:, 0]] * L[:, fe[:, 1]]], axis=1)   # (k, n_loc)
+        rows = np.repeat(np.arange(k), phi.shape[1])
+        V = sp.csr_array((k, self.n_slots))
+        for cells, sign in ((net.plus_cell, 1.0), (net.minus_cell, -1.0)):
+            slots = np.concatenate(self.face_slots(net.faces[ff], cells[ff]), axis=1)        # (k, n_loc)
+            V = V + sp.csr_array(((sign * phi).ravel(), (rows, slots.ravel())), shape=V.shape)
+        # a face bubble's trace is 60 Π λ_i over the face's own vertices, whatever their order
+        B = sp.csr_array((self.bubble_sign.astype(float),
+                          (self.bubble_face, self.n_point_slots + np.arange(self.n_bubbles))),
+                         shape=(net.n_faces, self.n_slots))
+        V = (V + sp.diags_array(BUBBLE_SCALE * np.prod(L, axis=1)) @ B[ff]).tocsr()
+        V.eliminate_zeros()         # an unsplit slot (tip edge, off-Γ vertex) cancels out
+        return V
 
 
 def _nudged(X, owner, inc_slot, inc_cell, centroid, n):

@@ -39,7 +39,7 @@ def mesh_from_polygons(nodes: np.ndarray, polygons: Ragged, *, cell_region=None,
     nodes = np.asarray(nodes, float)
     cnt = polygons.counts
     if np.any(cnt < 3):
-        raise MeshError("mesh.cells", "a polygon needs at least 3 nodes")
+        raise MeshError("cells", "a polygon needs at least 3 nodes")
     vals = polygons.values.copy()
     nxt = np.empty_like(vals)
     # next node in each loop, then the signed area decides the orientation
@@ -152,7 +152,7 @@ def mesh_from_polyhedra(nodes: np.ndarray, loops: Ragged, loop_cell: np.ndarray,
     nodes = np.asarray(nodes, float)
     loop_cell = np.asarray(loop_cell, dtype=INDEX)
     if np.any(np.diff(loop_cell) < 0):
-        raise MeshError("mesh.cells", "face loops must be grouped by cell in increasing cell order")
+        raise MeshError("cells", "face loops must be grouped by cell in increasing cell order")
     if not oriented:
         loops = _orient_loops(nodes, loops, loop_cell)
     face_nodes, loop_face, loop_sign = dedupe_faces(loops)
@@ -214,7 +214,7 @@ def mesh_from_cells(nodes: np.ndarray, blocks: Mapping[str, np.ndarray], *, cell
         rows = []
         for kind, conn in blocks.items():
             if kind not in ("triangle", "quad"):
-                raise MeshError("mesh.cells", f"unsupported 2D cell type {kind!r}; allowed: triangle, quad")
+                raise MeshError("cells", f"unsupported 2D cell type {kind!r}; allowed: triangle, quad")
             rows.append(np.asarray(conn, INDEX))
         counts = np.concatenate([np.full(len(r), r.shape[1]) for r in rows])
         polys = Ragged.from_counts(counts, np.concatenate([r.ravel() for r in rows]))
@@ -227,7 +227,7 @@ def mesh_from_cells(nodes: np.ndarray, blocks: Mapping[str, np.ndarray], *, cell
     needs_orient = False
     for kind, conn in blocks.items():
         if kind not in CELL_FACES_3D:
-            raise MeshError("mesh.cells", f"unsupported 3D cell type {kind!r}; allowed: {sorted(CELL_FACES_3D)}")
+            raise MeshError("cells", f"unsupported 3D cell type {kind!r}; allowed: {sorted(CELL_FACES_3D)}")
         conn = np.asarray(conn, INDEX)
         nck = len(conn)
         if kind == "tetra" and nck:

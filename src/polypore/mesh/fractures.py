@@ -47,7 +47,7 @@ class FractureSpec:
 
 
 def _fail(name, msg):
-    raise InputError(f"fractures.{name}", msg)
+    raise InputError(f"fracture {name}", msg)
 
 
 def validate_spec(spec: FractureSpec, dim: int, box: np.ndarray | None = None, tol: float = 1e-9) -> dict:
@@ -329,7 +329,7 @@ def build_network(mesh: Mesh, specs, tol: float | None = None) -> FractureNetwor
     names = tuple(s.name for s in specs)
     if len(set(names)) != len(names):
         dup = next(n for n in names if names.count(n) > 1)
-        raise InputError("fractures", f"fracture name {dup!r} is used twice; names must be unique")
+        raise InputError("fracture", f"fracture name {dup!r} is used twice; names must be unique")
     box = mesh.bounding_box
     span = float(np.max(box[1] - box[0]))
     if tol is None:
@@ -341,11 +341,11 @@ def build_network(mesh: Mesh, specs, tol: float | None = None) -> FractureNetwor
         f, nrm = _match_faces(mesh, geo, tol)
         on_bdry = bface[f]
         if np.any(on_bdry):
-            raise InputError(f"fractures.{spec.name}", "lies on the boundary of the domain; a fracture must be "
+            raise InputError(f"fracture {spec.name}", "lies on the boundary of the domain; a fracture must be "
                              "inside Ω (it may reach ∂Ω, not run along it)")
         covered = float(mesh.geometry.face_area[f].sum())
         if abs(covered - geo["measure"]) > 1e-6 * geo["measure"]:
-            raise MeshError(f"fractures.{spec.name}",
+            raise MeshError(f"fracture {spec.name}",
                             f"does not conform to the mesh: mesh faces cover {100 * covered / geo['measure']:.2f}% "
                             f"of its {'length' if mesh.dim == 2 else 'area'} {geo['measure']:.6g}; the mesh must "
                             "have faces along the whole fracture (mesh it with the fracture embedded)")
@@ -360,7 +360,7 @@ def build_network(mesh: Mesh, specs, tol: float | None = None) -> FractureNetwor
         u, c = np.unique(faces, return_counts=True)
         dup = u[c > 1][0]
         who = [names[k] for k in fracs[faces == dup]]
-        raise InputError("fractures", f"fractures {who} overlap (they share face {dup}); fractures may cross "
+        raise InputError("fracture", f"fractures {who} overlap (they share face {dup}); fractures may cross "
                          "but not overlap")
     return _assemble_network(mesh, names, specs, faces, fracs, normals, measures)
 
@@ -383,9 +383,9 @@ def network_from_faces(mesh: Mesh, named_faces: dict, normals: dict | None = Non
     for i, name in enumerate(names):
         f = np.unique(np.asarray(named_faces[name], dtype=INDEX))
         if f.size == 0:
-            raise InputError(f"fractures.{name}", "has no faces in the mesh")
+            raise InputError(f"fracture {name}", "has no faces in the mesh")
         if np.any(mesh.face_cells[f, 1] < 0):
-            raise InputError(f"fractures.{name}", "contains boundary faces; fracture faces must be interior")
+            raise InputError(f"fracture {name}", "contains boundary faces; fracture faces must be interior")
         n = g.face_normal[f]
         if name in normals and normals[name] is not None:
             ref = np.asarray(normals[name], float)
@@ -395,7 +395,7 @@ def network_from_faces(mesh: Mesh, named_faces: dict, normals: dict | None = Non
             ref = ref * np.sign(ref[np.argmax(np.abs(ref))])
         dots = n @ ref / np.linalg.norm(ref)
         if np.any(np.abs(dots) < 0.1):
-            raise InputError(f"fractures.{name}", "is too curved to orient its + side from one reference normal; "
+            raise InputError(f"fracture {name}", "is too curved to orient its + side from one reference normal; "
                              "give its `normal`, or split it into fractures that are closer to planar")
         faces.append(f)
         fracs.append(np.full(f.size, i))
@@ -403,7 +403,7 @@ def network_from_faces(mesh: Mesh, named_faces: dict, normals: dict | None = Non
         measures.append(float(g.face_area[f].sum()))
     faces = np.concatenate(faces).astype(INDEX) if faces else np.zeros(0, INDEX)
     if np.unique(faces).size != faces.size:
-        raise InputError("fractures", "two fracture groups share faces; fractures may cross but not overlap")
+        raise InputError("fracture", "two fracture groups share faces; fractures may cross but not overlap")
     fracs = np.concatenate(fracs).astype(INDEX) if fracs else np.zeros(0, INDEX)
     nrms = np.concatenate(nrms) if nrms else np.zeros((0, mesh.dim))
     specs = tuple(FractureSpec(n, np.zeros((0, mesh.dim))) for n in names)

@@ -162,7 +162,7 @@ def _faces(dim, nodes, face_nodes: Ragged):
             X = nodes[conn]
             if dim == 2:
                 if m != 2:
-                    raise MeshError("mesh.faces", f"a 2D face must have 2 nodes, found {m}")
+                    raise MeshError("faces", f"a 2D face must have 2 nodes, found {m}")
                 t = X[:, 1] - X[:, 0]
                 L = np.hypot(t[:, 0], t[:, 1])
                 area[rows] = L
@@ -172,7 +172,7 @@ def _faces(dim, nodes, face_nodes: Ragged):
                 weight[face_nodes.positions(rows, m)] = 0.5
                 continue
             if m < 3:
-                raise MeshError("mesh.faces", f"a 3D face must have at least 3 nodes, found {m}")
+                raise MeshError("faces", f"a 3D face must have at least 3 nodes, found {m}")
             xc, Y, a = _face_pieces_3d(X)
             A = a.sum(axis=1)
             absA = np.linalg.norm(A, axis=1)
@@ -189,7 +189,7 @@ def _faces(dim, nodes, face_nodes: Ragged):
     tiny = area <= 1e-12 * np.maximum(diameter, 1e-300) ** (dim - 1)
     if np.any(tiny | ~np.isfinite(area)):
         bad = np.flatnonzero(tiny | ~np.isfinite(area))
-        raise MeshError("mesh.faces", f"{bad.size} degenerate face(s) with zero area, first: face {bad[0]} "
+        raise MeshError("faces", f"{bad.size} degenerate face(s) with zero area, first: face {bad[0]} "
                         f"(nodes {face_nodes.row(bad[0]).tolist()}); every face needs a positive measure")
     with np.errstate(invalid="ignore", divide="ignore"):
         nonplanar = nonplanar / diameter
@@ -253,7 +253,7 @@ def compute_geometry(dim: int, nodes: np.ndarray, face_nodes: Ragged, cell_faces
     bad = ~(vol > 0)
     if np.any(bad):
         b = np.flatnonzero(bad)
-        raise MeshError("mesh.cells", f"{b.size} cell(s) with non-positive volume, first: cell {b[0]} "
+        raise MeshError("cells", f"{b.size} cell(s) with non-positive volume, first: cell {b[0]} "
                         f"(volume {vol[b[0]]:.3e}); cells must be non-degenerate and their faces "
                         "oriented consistently")
     centroid = cnum / vol[:, None]

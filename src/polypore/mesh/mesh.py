@@ -177,24 +177,24 @@ def assemble_mesh(dim: int, nodes: np.ndarray, face_nodes: Ragged, cell_faces: R
     """
     nodes = np.ascontiguousarray(nodes, dtype=float)
     if nodes.ndim != 2 or nodes.shape[1] != dim:
-        raise MeshError("mesh.nodes", f"expected an (n, {dim}) array of coordinates, got shape {nodes.shape}")
+        raise MeshError("nodes", f"expected an (n, {dim}) array of coordinates, got shape {nodes.shape}")
     if not np.all(np.isfinite(nodes)):
-        raise MeshError("mesh.nodes", "node coordinates must be finite numbers")
+        raise MeshError("nodes", "node coordinates must be finite numbers")
     nf = len(face_nodes)
     sign = np.asarray(cell_face_sign, dtype=np.int8)
     inc_face = cell_faces.values
     if inc_face.size and (inc_face.min() < 0 or inc_face.max() >= nf):
-        raise MeshError("mesh.cells", "a cell refers to a face that does not exist")
+        raise MeshError("cells", "a cell refers to a face that does not exist")
     plus = sign > 0
     n_plus = np.bincount(inc_face[plus], minlength=nf)
     n_minus = np.bincount(inc_face[~plus], minlength=nf)
     total = n_plus + n_minus
     if np.any(total == 0):
-        raise MeshError("mesh.faces", f"{np.count_nonzero(total == 0)} face(s) belong to no cell")
+        raise MeshError("faces", f"{np.count_nonzero(total == 0)} face(s) belong to no cell")
     bad = (total > 2) | ((total == 2) & (n_plus != 1))
     if np.any(bad):
         f = int(np.flatnonzero(bad)[0])
-        raise MeshError("mesh.faces", f"face {f} is shared by {int(total[f])} cells or is oriented the same "
+        raise MeshError("faces", f"face {f} is shared by {int(total[f])} cells or is oriented the same "
                         "way in both of its cells; faces must be shared by at most two cells, with "
                         "opposite orientations")
     # flip boundary faces seen only with sign -1 so that boundary normals point out of Ω
@@ -219,7 +219,7 @@ def assemble_mesh(dim: int, nodes: np.ndarray, face_nodes: Ragged, cell_faces: R
     used = np.zeros(nodes.shape[0], bool)
     used[face_nodes.values] = True
     if not used.all():
-        raise MeshError("mesh.nodes", f"{np.count_nonzero(~used)} node(s) belong to no face; remove unused nodes")
+        raise MeshError("nodes", f"{np.count_nonzero(~used)} node(s) belong to no face; remove unused nodes")
     geometry = compute_geometry(dim, nodes, face_nodes, cell_faces, sign, cell_nodes)
 
     bfaces = np.flatnonzero(face_cells[:, 1] < 0).astype(INDEX)
@@ -235,7 +235,7 @@ def assemble_mesh(dim: int, nodes: np.ndarray, face_nodes: Ragged, cell_faces: R
         region_names = ("domain",)
     cell_region = np.asarray(cell_region, dtype=INDEX)
     if cell_region.shape != (nc,):
-        raise MeshError("mesh.regions", f"expected one region tag per cell ({nc}), got {cell_region.shape}")
+        raise MeshError("cell_region", f"expected one region tag per cell ({nc}), got {cell_region.shape}")
     region_names = tuple(region_names) if region_names is not None else tuple(
         f"region{i}" for i in range(int(cell_region.max()) + 1))
     return Mesh(dim, frozen(nodes), face_nodes, cell_faces, frozen(sign), frozen(face_cells), cell_nodes,
@@ -248,9 +248,9 @@ def with_regions(mesh: Mesh, cell_region: np.ndarray, region_names) -> Mesh:
 
     cell_region = np.asarray(cell_region, dtype=INDEX)
     if cell_region.shape != (mesh.n_cells,):
-        raise MeshError("mesh.regions", f"expected one region tag per cell ({mesh.n_cells}), got {cell_region.shape}")
+        raise MeshError("cell_region", f"expected one region tag per cell ({mesh.n_cells}), got {cell_region.shape}")
     if cell_region.size and (cell_region.min() < 0 or cell_region.max() >= len(region_names)):
-        raise MeshError("mesh.regions", "region tags must index region_names")
+        raise MeshError("cell_region", "region tags must index region_names")
     return dataclasses.replace(mesh, cell_region=frozen(cell_region), region_names=tuple(region_names))
 
 
@@ -264,6 +264,6 @@ def with_boundary_parts(mesh: Mesh, parts: Mapping[str, np.ndarray]) -> Mesh:
     for name, faces in parts.items():
         faces = np.asarray(faces, dtype=INDEX)
         if faces.size and (faces.min() < 0 or faces.max() >= mesh.n_faces or not bset[faces].all()):
-            raise MeshError(f"boundaries.{name}", "a boundary part must consist of faces on ∂Ω")
+            raise MeshError(f"parts.{name}", "a boundary part must consist of faces on ∂Ω")
         b[name] = frozen(faces)
     return dataclasses.replace(mesh, boundary=MappingProxyType(b))

@@ -124,12 +124,12 @@ def read_msh(path: str, isolate: bool = True) -> tuple[Mesh, dict]:
     p = Path(path)
     what = not_a_file(p)
     if what is not None:
-        raise InputError("mesh.file", f"{str(p)!r} {what}; mesh.file takes a Gmsh .msh file")
+        raise InputError("path", f"{str(p)!r} {what}; mesh.file takes a Gmsh .msh file")
     with open(p, "rb") as fh:
         head = fh.read(4096).lstrip()
     # gmsh would run any other text as a .geo script (which can call the shell): refuse it
     if not head.startswith(b"$MeshFormat"):
-        raise InputError("mesh.file", f"{str(p)!r} is not a Gmsh mesh file: it must start with $MeshFormat "
+        raise InputError("path", f"{str(p)!r} is not a Gmsh mesh file: it must start with $MeshFormat "
                          "(formats 2.2 and 4.1, ASCII or binary)")
     _check_ascii_numbers(p, head)
     t0 = time.perf_counter()
@@ -161,7 +161,7 @@ def _check_ascii_numbers(p: Path, head: bytes) -> None:
         if bad:
             line = data.count(b"\n", 0, bad.start()) + 1
             token = bad.group(0)[:20].decode("ascii", "replace")
-            raise InputError("mesh.file", f"{str(p)!r} line {line}: {token!r} in ${name.decode()} is not a number; "
+            raise InputError("path", f"{str(p)!r} line {line}: {token!r} in ${name.decode()} is not a number; "
                              "the nodes and elements of a Gmsh mesh file are numbers")
 
 
@@ -173,7 +173,7 @@ def _open(path: str):
         except InputError:
             raise
         except Exception as exc:
-            raise InputError("mesh.file", f"cannot read {path!r} as a Gmsh mesh (format 2.2 or 4.1): "
+            raise InputError("path", f"cannot read {path!r} as a Gmsh mesh (format 2.2 or 4.1): "
                              f"{gmsh_last_error(gmsh, exc)}") from None
 
 
@@ -224,7 +224,7 @@ def _isolated(fn, path: str):
     if os.WIFSIGNALED(status) or not raw:
         sig = os.WTERMSIG(status) if os.WIFSIGNALED(status) else None
         how = f"gmsh crashed on it ({signal.Signals(sig).name})" if sig else "its reader ended without a result"
-        raise InputError("mesh.file", f"cannot read {path!r} as a Gmsh mesh (format 2.2 or 4.1): {how}; the file is "
+        raise InputError("path", f"cannot read {path!r} as a Gmsh mesh (format 2.2 or 4.1): {how}; the file is "
                          "malformed")
     kind, value = pickle.loads(raw)
     if kind == "input":
@@ -265,12 +265,12 @@ def _build(path, tags, X, blocks, groups):
     elif cells2:
         dim, cells, faces = 2, cells2, [b for b in blocks if b[0] == 1]
     else:
-        raise InputError("mesh.file", f"{path!r} has no 2D or 3D cells (found only "
+        raise InputError("path", f"{path!r} has no 2D or 3D cells (found only "
                          f"{sorted({b[2] for b in blocks}) or 'no elements'}); supported: triangles, quadrangles, "
                          "tetrahedra, hexahedra, prisms, pyramids")
     bad = sorted({b[2] for b in cells if (dim, b[1]) not in _KINDS})
     if bad:
-        raise InputError("mesh.file", f"{path!r} has unsupported {dim}D elements {bad}; supported: "
+        raise InputError("path", f"{path!r} has unsupported {dim}D elements {bad}; supported: "
                          + ", ".join(k for (d, _), k in _KINDS.items() if d == dim))
     # node tags -> compact indices of the nodes that cells use
     lookup = np.full(int(tags.max(initial=0)) + 1, -1, np.int64)
@@ -279,7 +279,7 @@ def _build(path, tags, X, blocks, groups):
     for b in cells:
         used[lookup[b[4]].ravel()] = True
     if dim == 2 and np.any(X[used, 2] != 0):
-        raise InputError("mesh.file", f"{path!r} is a surface mesh that does not lie in the plane z = 0; "
+        raise InputError("path", f"{path!r} is a surface mesh that does not lie in the plane z = 0; "
                          "2D meshes must have z = 0 everywhere")
     new = np.cumsum(used) - 1
     nodes = X[used, :dim]
@@ -320,7 +320,7 @@ def _build(path, tags, X, blocks, groups):
     try:
         mesh = mesh_from_cells(nodes, blocks_out, cell_region=cell_region, region_names=names)
     except MeshError as exc:
-        raise MeshError("mesh.file", f"{path!r} is not a valid mesh: {exc}") from None
+        raise MeshError("path", f"{path!r} is not a valid mesh: {exc}") from None
 
     # lower-dimensional groups: match their elements to mesh faces by node sets
     face_rows = {}
@@ -349,7 +349,7 @@ def _build(path, tags, X, blocks, groups):
                 pos = np.minimum(np.searchsorted(keys, want), len(keys) - 1)
                 ok = bool(np.all(keys[pos] == want))
             if not ok:
-                raise InputError("mesh.file", f"physical group {name!r} of {path!r} has elements that are not "
+                raise InputError("path", f"physical group {name!r} of {path!r} has elements that are not "
                                  f"faces of the {dim}D cells; a group of dimension {dim - 1} must consist of cell faces")
             found.append(ids[pos])
         f = np.unique(np.concatenate(found)).astype(INDEX)
@@ -359,7 +359,7 @@ def _build(path, tags, X, blocks, groups):
         elif not on_bdry.any():
             fractures[name] = f
         else:
-            raise InputError("mesh.file", f"physical group {name!r} of {path!r} mixes {int(on_bdry.sum())} boundary "
+            raise InputError("path", f"physical group {name!r} of {path!r} mixes {int(on_bdry.sum())} boundary "
                              f"and {int((~on_bdry).sum())} interior faces; a group must be either a boundary part "
                              "or a fracture (interior faces)")
     if boundary:

@@ -60,7 +60,7 @@ class ContactLaw:
         if not isinstance(self.friction_law, FrictionLaw):
             raise TypeError(f"friction_law must be a FrictionLaw, got {type(self.friction_law).__name__}")
         if np.any(~(self.beta > 0)):
-            raise InputError("contact.beta", "must be positive")
+            raise InputError("beta", "must be positive")
 
 
 def _normal_tangential(v, n):

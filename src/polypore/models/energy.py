@@ -113,21 +113,37 @@ def step_energy(model, old, new) -> EnergyTerms:
     model : Poromechanics
     old, new : PoroState at t^{n−1} and t^n
     """
-    mech, asm, dofs = model.mech, model.asm, model.dofs
-    mesh = model.fm.mesh
-    g = mesh.geometry
-    d, nf = model.dim, model.n_ff
     t, dt = new.time, new.time - old.time
-    A = mech.A
     u, u0 = new.u.ravel(), old.u.ravel()
     du = u - u0
-    Au, Adu = A @ u, A @ du
+    Au = model.mech.A @ u
+    elastic, d_el, storage, d_st, stab, d_stab, num, scale = _stored_terms(model, old, new, u, u0, du, Au)
+    fric, cn, xt, s_contact = _contact_terms(model, old, new, du, dt)
+    load_w, reac_w, s_work = _work_terms(model, new, du, Au, t)
+    v_m, v_f, v_x, src_w, bnd_w, s_flow = _flow_terms(model, new, t, dt)
+    dil_w, s_dil = _dilatancy_work(model, old, new)
+    # the scale's parts summed in the order the terms are listed (the figures of earlier runs)
+    scale += s_contact
+    scale += s_work
+    scale += s_flow
+    scale += s_dil
+    return EnergyTerms(t, dt, elastic, storage, d_el, d_st, fric, v_m + v_f + v_x, v_m, v_f, v_x, cn, xt, num,
+                       load_w, reac_w, src_w, bnd_w, scale, dil_w, stab, d_stab)
+
+
+def _stored_terms(model, old, new, u, u0, du, Au):
+    """Stored energies and their changes: elastic ½ a(u, u), storage ½ Σ |K|/M p_K² (and the
+    fracture compressibility's, with the step's coefficient d_f^{n−1}), the stabilisation's ½ S_δ(p, p);
+    the implicit-Euler dissipation ``num`` (½ a(δu, δu) + ½ storage(δp, δp) + ½ S_δ(δp, δp)) and the
+    terms' scale."""
+    mech, dofs, nf = model.mech, model.dofs, model.n_ff
+    A = mech.A
     # -- elastic: ½a(u,u) − ½a(u0,u0) = ½ a(δu, u + u0), and ½ a(δu, δu) of implicit Euler
     elastic = 0.5 * float(u @ Au)
     d_el = 0.5 * float(du @ (Au + A @ u0))
-    num = 0.5 * float(du @ Adu)
+    num = 0.5 * float(du @ (A @ du))
     # -- storage (matrix, and fracture compressibility with the step's coefficient d_f^{n−1})
-    vol = g.cell_volume / model.flow.biot_modulus               # |K|/M, per cell (layered storage)
+    vol = model.fm.mesh.geometry.cell_volume / model.flow.biot_modulus     # |K|/M, per cell (layered storage)
     pK, pK0 = new.p[dofs.n:], old.p[dofs.n:]
     storage = 0.5 * float(np.sum(vol * pK * pK))
     d_st = 0.5 * float(np.sum(vol * (pK - pK0) * (pK + pK0)))
@@ -148,28 +164,37 @@ def step_energy(model, old, new) -> EnergyTerms:
     d_stab = 0.5 * float(ws @ ((jn - j0) * (jn + j0)))
     num += 0.5 * float(ws @ ((jn - j0) ** 2))
     scale += float(ws @ (jn * jn + j0 * j0))
-    # -- contact: friction on the slip increment, normal work, tangential excess, per multiplier
-    # (patch, discretisation/contact_patches.py): Σ_P |P| λ_P·Δ[[u]]_P = Σ_σ |σ| λ_σ·Δ[[u]]_σ
-    fric = cn = xt = 0.0
-    if nf:
-        n = mech.c_normal
-        area = mech.c_area
-        nc = mech.n_c
-        dq = (mech.Jcv @ du).reshape(nc, d)
-        dqn = np.einsum("fi,fi->f", dq, n)
-        dqt = dq - dqn[:, None] * n
-        lam = mech.patch_values(new.lam)
-        ln = np.einsum("fi,fi->f", lam, n)
-        lt = lam - ln[:, None] * n
-        # the friction law's radius at the converged traction and the step's slip, from its state
-        # before the step: the radius the step's Newton iteration used
-        r = mech.law.friction_law.radius(ln, dqt, model.friction_state(old), dt).value
-        slip = np.linalg.norm(dqt, axis=1)
-        fric = float(np.sum(area * r * slip))
-        cn = float(np.sum(area * ln * dqn))
-        xt = float(np.sum(area * np.einsum("fi,fi->f", lt, dqt))) - fric
-        scale += float(np.sum(area * (np.abs(ln * dqn) + np.linalg.norm(lt, axis=1) * slip + r * slip)))
-    # -- mechanical work: loads at t^n on δu, Dirichlet reactions (physical coupling −G p)
+    return elastic, d_el, storage, d_st, stab, d_stab, num, scale
+
+
+def _contact_terms(model, old, new, du, dt):
+    """Friction dissipation on the slip increment, normal work and tangential excess, per multiplier
+    (patch, discretisation/contact_patches.py): Σ_P |P| λ_P·Δ[[u]]_P = Σ_σ |σ| λ_σ·Δ[[u]]_σ; and their scale."""
+    if not model.n_ff:
+        return 0.0, 0.0, 0.0, 0.0
+    mech, d = model.mech, model.dim
+    n = mech.c_normal
+    area = mech.c_area
+    dq = (mech.Jcv @ du).reshape(mech.n_c, d)
+    dqn = np.einsum("fi,fi->f", dq, n)
+    dqt = dq - dqn[:, None] * n
+    lam = mech.patch_values(new.lam)
+    ln = np.einsum("fi,fi->f", lam, n)
+    lt = lam - ln[:, None] * n
+    # the friction law's radius at the converged traction and the step's slip, from its state
+    # before the step: the radius the step's Newton iteration used
+    r = mech.law.friction_law.radius(ln, dqt, model.friction_state(old), dt).value
+    slip = np.linalg.norm(dqt, axis=1)
+    fric = float(np.sum(area * r * slip))
+    cn = float(np.sum(area * ln * dqn))
+    xt = float(np.sum(area * np.einsum("fi,fi->f", lt, dqt))) - fric
+    return fric, cn, xt, float(np.sum(area * (np.abs(ln * dqn) + np.linalg.norm(lt, axis=1) * slip + r * slip)))
+
+
+def _work_terms(model, new, du, Au, t):
+    """Mechanical work: the loads at t^n on δu and the Dirichlet reactions (physical coupling −G p);
+    and their scale."""
+    mech = model.mech
     F = model.load_vector(t)
     Gp = model.G @ new.p
     Bl = mech.Bcv.T @ mech.patch_values(new.lam).ravel()
@@ -178,9 +203,15 @@ def step_energy(model, old, new) -> EnergyTerms:
     load_w = float(F @ du)
     reac_w = float(R[fixed] @ du[fixed])
     adu = np.abs(du)
-    scale += float(adu @ (np.abs(Au) + np.abs(Bl) + np.abs(Gp) + 2 * np.abs(F)))
-    # -- flow: viscous dissipation with the step's conductivities (lagged by default), sources, boundary flow
+    return load_w, reac_w, float(adu @ (np.abs(Au) + np.abs(Bl) + np.abs(Gp) + 2 * np.abs(F)))
+
+
+def _flow_terms(model, new, t, dt):
+    """Flow: viscous dissipation (matrix, fractures, matrix–fracture exchange) with the step's
+    conductivities (lagged by default), the sources' and the boundary's work; and their scale."""
+    mesh, asm, dofs, nf = model.fm.mesh, model.asm, model.dofs, model.n_ff
     p = new.p
+    pK, pf = p[dofs.n:], p[dofs.frac]
     ex, fc = model.conductivities(new.flux_aperture) if nf else (np.zeros(0), np.zeros(0))
     cf_ = mesh.cell_faces
     rows = cf_.rows_of_entries()
@@ -196,9 +227,8 @@ def step_energy(model, old, new) -> EnergyTerms:
     v_x = dt * float(np.sum(ex[:, None] * jt * jt))
     hm, hf = model.flow.sources(t)
     src_w = dt * float(hm @ pK + hf @ pf)
-    bfaces = mesh.boundary_faces
     on_b = np.zeros(mesh.n_faces, bool)
-    on_b[bfaces] = True
+    on_b[mesh.boundary_faces] = True
     eb = on_b[cf_.values]
     edge_out = np.bincount(fe.values, weights=Ff, minlength=pe.size) if nf else np.zeros(pe.size)
     bedges = np.zeros(pe.size, bool)
@@ -206,21 +236,23 @@ def step_energy(model, old, new) -> EnergyTerms:
         bedges[edges] = True
     bnd_w = -dt * float(Fm[eb] @ p[dofs.slot[eb]] + edge_out[bedges] @ pe[bedges])
     ap = np.abs(p)
-    scale += dt * float(np.abs(Fm) @ (np.abs(pK[rows]) + ap[dofs.slot]) + np.abs(Ff) @ (np.abs(pf[fe.rows_of_entries()])
+    scale = dt * float(np.abs(Fm) @ (np.abs(pK[rows]) + ap[dofs.slot]) + np.abs(Ff) @ (np.abs(pf[fe.rows_of_entries()])
                                                                                       + np.abs(pe[fe.values]))
-                        + np.sum(ex[:, None] * jt * jt) + np.abs(hm) @ np.abs(pK) + np.abs(hf) @ np.abs(pf))
-    # -- dilatancy (C6): the storage term |σ| tan ψ Δ|[[u − u⁰]]_τ| of the flow rows has no
-    # counterpart in the equilibrium (the dilatant law is not derived from a potential), so its
-    # product with p_f is counted as work done on the fluid: W_dil = −Σ|σ| tan ψ p_f Δ|[[u − u⁰]]_τ|
-    dil_w = 0.0
-    if nf and np.any(model.tan_psi > 0):
-        rel1 = model.tangential_slip(model.jumps(new.u))[0]
-        rel0 = model.tangential_slip(model.jumps(old.u))[0]
-        dil = mech.face_area * model.tan_psi * (rel1 - rel0) * pf
-        dil_w = -float(dil.sum())
-        scale += float(np.abs(dil).sum())
-    return EnergyTerms(t, dt, elastic, storage, d_el, d_st, fric, v_m + v_f + v_x, v_m, v_f, v_x, cn, xt, num,
-                       load_w, reac_w, src_w, bnd_w, scale, dil_w, stab, d_stab)
+                       + np.sum(ex[:, None] * jt * jt) + np.abs(hm) @ np.abs(pK) + np.abs(hf) @ np.abs(pf))
+    return v_m, v_f, v_x, src_w, bnd_w, scale
+
+
+def _dilatancy_work(model, old, new):
+    """Dilatancy (C6): the storage term |σ| tan ψ Δ|[[u − u⁰]]_τ| of the flow rows has no
+    counterpart in the equilibrium (the dilatant law is not derived from a potential), so its
+    product with p_f is counted as work done on the fluid: W_dil = −Σ|σ| tan ψ p_f Δ|[[u − u⁰]]_τ|;
+    and its scale."""
+    if not (model.n_ff and np.any(model.tan_psi > 0)):
+        return 0.0, 0.0
+    rel1 = model.tangential_slip(model.jumps(new.u))[0]
+    rel0 = model.tangential_slip(model.jumps(old.u))[0]
+    dil = model.mech.face_area * model.tan_psi * (rel1 - rel0) * new.p[model.dofs.frac]
+    return -float(dil.sum()), float(np.abs(dil).sum())
 
 
 def check_energy(terms, rtol: float = 1e-9) -> list[str]:

@@ -31,7 +31,7 @@ from ..assembly.flow import FlowAssembler, FlowSystem
 from ..core.errors import InputError
 from ..discretisation.hfv import CELL_POINTS
 from ..parallel.layout import context, distribute, min_owner
-from ..solvers.linear import LinearSolver
+from ..solvers.factory import SolverChoice, SolverSource, build
 from ..core.timing import SPLIT
 
 
@@ -222,13 +222,13 @@ class FlowModel:
         HFV stabilisation (defaults √d and √(d−1)).
     cell_point : "auto" (default) or "centroid"
         HFV cell points (`discretisation.hfv.matrix_hfv`).
-    solver : LinearSolver, optional
-        Default ``LinearSolver("auto", symmetric=True)``.
+    solver : a ready solver or a :class:`~polypore.solvers.factory.SolverChoice` (plain backends), optional
+        Default ``SolverChoice("auto", symmetric=True)``.
     """
 
     def __init__(self, fmesh, data: FlowData, boundary: Mapping | None = None, *,
                  fracture_boundary: Mapping | None = None, cell_source=0.0, fracture_source=0.0,
-                 alpha=None, fracture_alpha=None, solver: LinearSolver | None = None, cell_point: str = "auto"):
+                 alpha=None, fracture_alpha=None, solver: SolverSource = None, cell_point: str = "auto"):
         t0 = time.perf_counter()
         self.fmesh = fmesh
         self.mesh = mesh = fmesh.mesh
@@ -236,19 +236,20 @@ class FlowModel:
         self.data = data
         self.viscosity = _positive(data.viscosity, "flow.viscosity")
         M = np.asarray(data.biot_modulus, float)
+        self.biot_modulus: float | np.ndarray
         if M.ndim == 0:
             self.biot_modulus = _positive(data.biot_modulus, "flow.biot_modulus", allow_inf=True)
         elif M.shape == (mesh.n_cells,) and np.all(M > 0):
             self.biot_modulus = M                               # per cell (layered storage), Pa
         else:
-            raise InputError("flow.biot_modulus", f"expected a positive number or one per cell ({mesh.n_cells}), "
+            raise InputError("biot_modulus", f"expected a positive number or one per cell ({mesh.n_cells}), "
                              f"got shape {M.shape}")
         b = float(data.biot_coefficient)
         if not (b >= 0 and np.isfinite(b)):
-            raise InputError("flow.biot_coefficient", f"must be a finite number ≥ 0, got {data.biot_coefficient!r}")
+            raise InputError("biot_coefficient", f"must be a finite number ≥ 0, got {data.biot_coefficient!r}")
         cf = float(data.fracture_compressibility)
         if not (cf >= 0 and np.isfinite(cf)):
-            raise InputError("flow.fracture_compressibility", f"must be a finite number ≥ 0 (1/Pa), got {cf!r}")
+            raise InputError("fracture_compressibility", f"must be a finite number ≥ 0 (1/Pa), got {cf!r}")
         self.permeability = permeability_tensor(data.permeability, mesh.n_cells, mesh.dim)
         for a, nm in ((alpha, "flow.alpha"), (fracture_alpha, "flow.fracture_alpha")):
             if a is not None:
@@ -259,16 +260,16 @@ class FlowModel:
         self.aperture0 = self.aperture(0.0)
         self.cell_source = cell_source
         self.fracture_source = fracture_source
-        self.solver = solver or LinearSolver("auto", symmetric=True)
+        self.solver = build(solver, default=SolverChoice("auto", symmetric=True))
         self._resolve_boundary(dict(boundary or {}), dict(fracture_boundary or {}))
         t1 = time.perf_counter()
         if cell_point not in CELL_POINTS:
-            raise InputError("flow.cell_point", f"must be one of {', '.join(CELL_POINTS)}, got {cell_point!r}")
+            raise InputError("cell_point", f"must be one of {', '.join(CELL_POINTS)}, got {cell_point!r}")
         self.assembler = FlowAssembler(mesh, net, self.permeability / self.viscosity, alpha, fracture_alpha,
                                        cell_point)
         self.fracture_cells = self.assembler.fcells
         self.setup_seconds = {"validation": t1 - t0, "local_operators_and_pattern": time.perf_counter() - t1}
-        self._cache = None
+        self._cache: tuple | None = None
         self._distributed = False
 
     # -- distributed runs (parallel/layout.py) ---------------------------------------------
@@ -328,16 +329,16 @@ class FlowModel:
     def _resolve_boundary(self, boundary: dict, fracture_boundary: dict):
         mesh, net = self.mesh, self.network
         owner = np.full(mesh.n_faces, -1)
-        conds = []
+        conds: list = []
         for name, cond in boundary.items():
             faces = self._group(name, f"flow.boundary.{name}")
             if not isinstance(cond, (Pressure, Flux)):
-                raise InputError(f"flow.boundary.{name}", f"expected Pressure(value) or Flux(value), got {cond!r}")
+                raise InputError(f"boundary.{name}", f"expected Pressure(value) or Flux(value), got {cond!r}")
             taken = faces[owner[faces] >= 0]
             if taken.size:
                 other = conds[owner[taken[0]]]
                 if other[1] != cond:
-                    raise InputError(f"flow.boundary.{name}", f"face {int(taken[0])} also belongs to boundary "
+                    raise InputError(f"boundary.{name}", f"face {int(taken[0])} also belongs to boundary "
                                      f"{other[0]!r} with a different condition ({other[1]!r} vs {cond!r}); "
                                      "overlapping boundary parts must carry the same condition")
             owner[faces] = len(conds)
@@ -388,7 +389,7 @@ class FlowModel:
             elif name in boundary:
                 effective[name] = NO_FLOW
         edge_owner = np.full(ne, -1)
-        econds = []
+        econds: list = []
         for name, cond in effective.items():
             edges = on_part[name]
             taken = edges[edge_owner[edges] >= 0]
@@ -396,7 +397,7 @@ class FlowModel:
                 oname, ocond = econds[edge_owner[taken[0]]]
                 if ocond != cond:
                     x = self._edge_points()[taken[0]].tolist()
-                    raise InputError(f"flow.fracture_boundary.{name}",
+                    raise InputError(f"fracture_boundary.{name}",
                                      f"the fracture end at {x} lies on boundary parts {oname!r} ({ocond!r}) and "
                                      f"{name!r} ({cond!r}): it is given both conditions; make them agree")
             edge_owner[edges] = len(econds)
@@ -422,9 +423,8 @@ class FlowModel:
             if isinstance(cond, Pressure):
                 ids.append(dofs.edge[edges])
                 vals.append(evaluate(cond.value, pts[edges], t, f"flow.boundary.{name}"))
-        ids = np.concatenate(ids) if ids else np.zeros(0, np.int64)
-        vals = np.concatenate(vals) if vals else np.zeros(0)
-        return ids, vals, qflux
+        return (np.concatenate(ids) if ids else np.zeros(0, np.int64), np.concatenate(vals) if vals else np.zeros(0),
+                qflux)
 
     def sources(self, t: float):
         """Cell and fracture source volumes per second: |K| h_m (n_cells,), |σ| h_f (n_ff,), m³/s."""
@@ -454,9 +454,9 @@ class FlowModel:
         lam = np.broadcast_to(lam, aperture.shape)
         cond = np.broadcast_to(cond, aperture.shape)
         if not (np.all(lam > 0) and np.all(np.isfinite(lam))):
-            raise InputError("flow.normal_transmissivity_law", "must return positive finite values (m)")
+            raise InputError("normal_transmissivity_law", "must return positive finite values (m)")
         if not (np.all(cond >= 0) and np.all(np.isfinite(cond))):
-            raise InputError("flow.conductivity_law", "must return non-negative finite values (m³)")
+            raise InputError("conductivity_law", "must return non-negative finite values (m³)")
         system = self.assembler.system(s_cell, area * lam / eta, cond / eta, s_frac)
         t1 = time.perf_counter()
         ids, _, _ = self.dirichlet(0.0)
@@ -469,7 +469,7 @@ class FlowModel:
         t2 = time.perf_counter()
         timings = {"assembly": t1 - t0, **self.assembler.last_timings, "dirichlet_split": t2 - t1}
         self._cache = (key, system, fidx, A_ff, A_fd, timings)
-        return self._cache[1:]
+        return system, fidx, A_ff, A_fd, timings
 
     def _solve(self, t, dt, aperture, cell_rhs, frac_rhs) -> FlowSolution:
         self._distribute()

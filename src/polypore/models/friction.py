@@ -46,9 +46,15 @@ class Radius:
 class FrictionLaw(Protocol):
     """What the contact linearisation and the energy audit need of a friction law."""
 
-    name: str
-    # what a run that lost its equilibrium should be told, for a law that can soften (None: cannot)
-    instability_hint: str | None
+    @property
+    def name(self) -> str:
+        """The law's case-file name (``contact.law``)."""
+        ...
+
+    @property
+    def instability_hint(self) -> str | None:
+        """What a run that lost its equilibrium should be told, for a law that can soften (None: cannot)."""
+        ...
 
     def radius(self, y_n: np.ndarray, slip: np.ndarray, state: np.ndarray, dt: float) -> Radius:
         """r at trial normal traction y_n (n,) Pa and step slip ``slip`` (n, d) m, tangential."""
@@ -109,7 +115,7 @@ class Tresca(_Stateless):
     name: str = field(default="tresca", init=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "threshold", _check("contact.threshold", self.threshold,
+        object.__setattr__(self, "threshold", _check("threshold", self.threshold,
                                                      "must be finite and ≥ 0 (Pa)"))
 
     def radius(self, y_n, slip, state, dt) -> Radius:
@@ -128,7 +134,7 @@ class Coulomb(_Stateless):
     name: str = field(default="coulomb", init=False)
 
     def __post_init__(self):
-        object.__setattr__(self, "friction", _check("contact.friction", self.friction, "must be finite and ≥ 0"))
+        object.__setattr__(self, "friction", _check("friction", self.friction, "must be finite and ≥ 0"))
 
     def radius(self, y_n, slip, state, dt) -> Radius:
         closed = y_n > 0
@@ -164,13 +170,13 @@ class SlipWeakening:
                         "near the last state (docs/contact.md, \"Slip-weakening\")")
 
     def __post_init__(self):
-        fs = _check("contact.friction", self.friction, "must be finite and ≥ 0")
-        fd = _check("contact.dynamic_friction", np.broadcast_to(self.dynamic, fs.shape), "must be finite and ≥ 0")
-        dc = _check("contact.critical_slip", np.broadcast_to(self.critical_slip, fs.shape),
+        fs = _check("friction", self.friction, "must be finite and ≥ 0")
+        fd = _check("dynamic_friction", np.broadcast_to(self.dynamic, fs.shape), "must be finite and ≥ 0")
+        dc = _check("critical_slip", np.broadcast_to(self.critical_slip, fs.shape),
                     "must be finite and > 0 (m)", positive=True)
         if np.any(fd > fs):
             i = int(np.argmax(fd > fs))
-            raise InputError("contact.dynamic_friction", f"must not exceed the static friction: {fd[i]!r} > {fs[i]!r}")
+            raise InputError("dynamic_friction", f"must not exceed the static friction: {fd[i]!r} > {fs[i]!r}")
         object.__setattr__(self, "friction", fs)
         object.__setattr__(self, "dynamic", np.array(fd, float))
         object.__setattr__(self, "critical_slip", np.array(dc, float))
@@ -214,11 +220,11 @@ def friction_law(name: str, n: int, friction=None, threshold=None, dynamic_frict
     InputError naming the contact key when the law is unknown or a coefficient is missing or out of range
     """
     if name not in LAWS:
-        raise InputError("contact.law", f"unknown contact law {name!r}; allowed: {', '.join(LAWS)}")
+        raise InputError("law", f"unknown contact law {name!r}; allowed: {', '.join(LAWS)}")
 
     def need(key, v):
         if v is None:
-            raise InputError(f"contact.{key}", f"is needed by contact.law = {name!r}")
+            raise InputError(key, f"is needed by contact.law = {name!r}")
         return np.array(np.broadcast_to(np.asarray(v, float), (n,)), float)
 
     if name == "frictionless":

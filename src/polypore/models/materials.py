@@ -38,7 +38,7 @@ class Elastic:
     @classmethod
     def from_lame(cls, mu: float, lam: float) -> "Elastic":
         if not mu > 0 or not lam > -2 * mu / 3:
-            raise InputError("material", f"need μ > 0 and λ > −2μ/3, got μ={mu!r}, λ={lam!r}")
+            raise InputError("lam", f"need μ > 0 and λ > −2μ/3, got μ={mu!r}, λ={lam!r}")
         return cls(mu * (3 * lam + 2 * mu) / (lam + mu), lam / (2 * (lam + mu)))
 
 

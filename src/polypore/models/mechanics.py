@@ -15,14 +15,14 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass, field, replace
-from typing import Callable, Sequence
+from typing import Callable, Protocol, Sequence
 
 import numpy as np
 import scipy.sparse as sp
 
 from ..assembly.elasticity import elasticity_matrix
 from ..assembly.blocks import Block
-from ..assembly.pattern import BlockPattern, Pattern
+from ..assembly.pattern import Pattern, jacobian_pattern
 from ..core.csr import with_entries
 from ..core.errors import InputError
 from ..core.memory import trim_heap
@@ -32,7 +32,9 @@ from ..discretisation.faces import face_entries, face_mean_operator
 from ..mesh import FracturedMesh
 from ..solvers.block_jacobian import BlockJacobian, FreeSplit, block_diag_csr
 from ..parallel.layout import OwnedRows, SplitRowBlock, local_rows, min_owner, owned_layout, register_layout
-from ..solvers.linear import LinearSolver, release_solver
+from ..solvers.factory import BlockProblem, SolverSource, build
+from ..solvers.interface import LinearSystemSolver
+from ..solvers.linear import release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import OPEN, PATCH_RATIO, SLIP, STICK, ContactLaw, linearise_contact
 from .friction import friction_law
@@ -132,15 +134,15 @@ class MechanicsData:
         b = np.asarray(self.biot, float)
         _require("biot", b, (b >= 0) & (b <= 1), "the Biot coefficient must lie in [0, 1]")
         if self.bubble_stabilisation not in ("face", "cell"):
-            raise InputError("mechanics.bubble_stabilisation", f"must be 'face' or 'cell', got "
+            raise InputError("bubble_stabilisation", f"must be 'face' or 'cell', got "
                              f"{self.bubble_stabilisation!r}")
         if self.bubble_side not in ("plus", "regular"):
-            raise InputError("mechanics.bubble_side", f"must be 'plus' or 'regular', got {self.bubble_side!r}")
+            raise InputError("bubble_side", f"must be 'plus' or 'regular', got {self.bubble_side!r}")
         if self.nodal_stabilisation not in ("diameter", "thickness"):
-            raise InputError("mechanics.nodal_stabilisation", f"must be 'diameter' or 'thickness', got "
+            raise InputError("nodal_stabilisation", f"must be 'diameter' or 'thickness', got "
                              f"{self.nodal_stabilisation!r}")
         if isinstance(self.order, bool) or self.order not in (1, 2):
-            raise InputError("mechanics.order", f"the displacement order must be 1 (nodal + bubble space) or 2 "
+            raise InputError("order", f"the displacement order must be 1 (nodal + bubble space) or 2 "
                              f"(quadratic, simplicial meshes), got {self.order!r}")
 
 
@@ -165,14 +167,10 @@ class MechanicsState:
     friction: np.ndarray | None = None      # (n_c, k) the friction law's state after this solve
 
 
-def jacobian_pattern(blocks, n: int, layout) -> BlockPattern:
-    """The fixed pattern of an (n, n) Newton Jacobian from its blocks of (row, col) contributions:
-    every row serially; under mpiexec (``layout`` a DofLayout) this rank's rows, numbered from 0,
-    with the columns in the distributed numbering, the rows PETSc takes as they are."""
-    if layout is None:
-        return BlockPattern.build(blocks, (n, n))
-    return BlockPattern.build(blocks, (n, n), row_local=layout.local_index, col_map=layout.inv,
-                              n_rows=layout.n_local)
+class HasDisplacement(Protocol):
+    """A state with displacements ``u`` (n_slots, d), m: MechanicsState, the coupled model's PoroState."""
+
+    u: np.ndarray
 
 
 def _with_contact_couplings(A, jump, d: int):
@@ -181,8 +179,8 @@ def _with_contact_couplings(A, jump, d: int):
 
     The block preconditioners' condensed matrix S = A − Bᵀ Ĉ⁻¹ Ĉ_u (solvers/block_contact.py)
     then has A's pattern and is built by changing those entries of A's restriction in place,
-    without a sparse sum (whose temporaries were the Newton iteration's peak: +1 GB on the
-    10⁵-cell weak-scaling grid). Values, and every product with A, are unchanged.
+    without a sparse sum (whose temporaries were the Newton iteration's memory peak,
+    docs/iterative_cornerpoint.md). Values, and every product with A, are unchanged.
     """
     if jump.nnz == 0:
         return A
@@ -252,16 +250,20 @@ class ContactMechanics:
     ----------
     fm : FracturedMesh
     data : MechanicsData
-    solver : LinearSolver (default: sparse direct)
+    solver : a ready solver, or a :class:`~polypore.solvers.factory.SolverChoice` the model builds
+        (:func:`~polypore.solvers.factory.build`, with :meth:`block_problem` for the block backends);
+        default sparse direct
     """
 
-    def __init__(self, fm: FracturedMesh, data: MechanicsData, solver: LinearSolver | None = None,
+    def __init__(self, fm: FracturedMesh, data: MechanicsData, solver: SolverSource = None,
                  newton: NewtonOptions | None = None):
         t0 = time.perf_counter()
         self.fm, self.data = fm, data
         mesh, net = fm.mesh, fm.network
         self.dim = d = mesh.dim
         self.order = int(data.order)
+        self.space: DisplacementSpace | QuadraticSpace
+        self.ops: Operators | QuadraticOperators
         if self.order == 2:
             self.space = QuadraticSpace.build(fm, data.two_sided)
             self.ops = QuadraticOperators.build(self.space)
@@ -275,7 +277,7 @@ class ContactMechanics:
         if self.ops.stab is not None:
             # the stabilisation rows serve A only (the largest operator: one row per cell node),
             # so they are not kept for the rest of the run
-            self.ops = replace(self.ops, stab=None, stab_cell=None)
+            self.ops = replace(self.ops, stab=None, stab_cell=None)   # type: ignore[arg-type]  # both classes have them
         self.n_dofs = self.space.n_dofs
         g = mesh.geometry
         self.face_area = g.face_area[net.faces]
@@ -283,7 +285,7 @@ class ContactMechanics:
         # the multipliers live on patches of faces (one per face unless faces are slivers,
         # discretisation/contact_patches.py): the contact rows use the patch-mean jumps
         if not data.contact.patch_ratio >= 0:
-            raise InputError("contact.patch_ratio", f"must be ≥ 0, got {data.contact.patch_ratio!r}")
+            raise InputError("patch_ratio", f"must be ≥ 0, got {data.contact.patch_ratio!r}")
         self.patches = P = contact_patches(fm, data.contact.patch_ratio)
         self.n_c = P.n
         self.c_area, self.c_normal = P.area, P.normal
@@ -301,7 +303,7 @@ class ContactMechanics:
         self.Jcv, self.Bcv = _vector_jump(self.c_jump, P.area, self.n_dofs, d)
         J = self.c_jump.tocoo()
         self.A = _with_contact_couplings(self.A, J, d)
-        self._face_means = {}          # traction boundaries: face-mean operators (order 2: face quadratures)
+        self._face_means: dict = {}    # traction boundaries: face-mean operators (order 2: face quadratures)
         self._setup_dirichlet()
         self._setup_contact()
         # under mpiexec (parallel/layout.py; None serially): the layout of the Newton unknowns,
@@ -312,26 +314,8 @@ class ContactMechanics:
         # free block as it is; under mpiexec each rank keeps its rows
         self.A = FreeSplit(self.A, self.free) if self.dof_layout is None else \
             SplitRowBlock(self.A, self.dof_layout, self.free)
-        self.solver = solver or LinearSolver("auto")
-        backend = getattr(self.solver, "backend", None)
-        if backend in ("block-amg", "block-direct", "block-petsc"):
-            # block-direct: S factorised (symmetric positive definite factors), also for the
-            # coupled model's initial state: PARDISO on the whole (u, λ) system there peaked at
-            # 2.1 GB on the 30,000-cell study, above the coupled steps' own peak
-            self.solver = self.block_solver(rtol=self.solver.rtol if self.solver.rtol < 1e-6 else 1e-8,
-                                            petsc=backend == "block-petsc", options=self.solver.petsc_options,
-                                            mechanics="direct" if backend == "block-direct" else "amg")
-        self.pattern = self._fixed_vals = self._blocks = None
-        # the Jacobian goes to the solver by blocks (a block solver, one process): no assembled
-        # matrix, A's free block used in place (solvers/block_jacobian.py); fixed for the model
-        self.blockwise = bool(getattr(self.solver, "takes_blocks", False)) and self.layout is None
-        if self.blockwise:
-            self._setup_blocks(J)
-        else:
-            self._setup_pattern(J)
+        self._use_solver(build(solver, self.block_problem))
         self.newton = newton or NewtonOptions(label="contact Newton")
-        if self.layout is not None:
-            register_layout(self.solver, self.layout)
         trim_heap()                 # the set-up's temporaries (core/memory.py)
         self.seconds_setup = time.perf_counter() - t0
         log.info("mechanics: order %d, %d displacement dofs (%d free), %d multipliers (%d faces in %s), %s bubbles; "
@@ -339,21 +323,24 @@ class ContactMechanics:
                  "their own patches" if P.identity else f"{self.n_c} patches",
                  "two-sided" if data.two_sided else "one-sided", self.seconds_setup)
 
-    def block_solver(self, rtol: float = 1e-8, rho: float = 0.1, petsc: bool = False, options=None,
-                     mechanics: str = "amg"):
-        """GMRES + AMG (``mechanics="direct"``: S factorised) on the condensed displacement block, see
-        solvers/block_contact.py;
-        with ``petsc`` the same preconditioner through PETSc's PCFIELDSPLIT (solvers/petsc_fieldsplit.py),
-        tuned by the PETSc ``options`` ([solver.petsc])."""
-        if petsc:
-            from ..solvers.petsc_fieldsplit import PetscBlockContactSolver
+    def _use_solver(self, solver: LinearSystemSolver) -> None:
+        """Take the model's solver, once: the Jacobian's patterns for it and its layout."""
+        self.solver = solver
+        self.pattern = self._fixed_vals = self._blocks = None
+        # the Jacobian goes to the solver by blocks (a block solver, one process): no assembled
+        # matrix, A's free block used in place (solvers/block_jacobian.py); fixed for the model
+        self.blockwise = bool(solver.takes_blocks) and self.layout is None
+        if self.blockwise:
+            self._setup_blocks(self.c_jump.tocoo())
+        else:
+            self._setup_pattern(self.c_jump.tocoo())
+        if self.layout is not None:
+            register_layout(solver, self.layout)
 
-            return PetscBlockContactSolver(self.free.size, self.dim, self.condensation(rho),
-                                           near_nullspace=self.rigid_modes(), rtol=rtol, options=options)
-        from ..solvers.block_contact import BlockContactSolver
-
-        return BlockContactSolver(self.free.size, self.dim, self.condensation(rho), near_nullspace=self.rigid_modes(),
-                                  rtol=rtol, mechanics=mechanics)
+    def block_problem(self) -> BlockProblem:
+        """The contact system as the block solvers see it (:mod:`polypore.solvers.factory`): the free
+        displacements, the multipliers, the contact rows' condensation and the rigid-body modes."""
+        return BlockProblem(self.free.size, self.dim, self.n_c * self.dim, self.condensation(), self.rigid_modes())
 
     def condensation(self, rho: float = 0.1):
         """Contact-row data for the block preconditioners: c_σ = |σ| β_σ (the scaled rows), n⁺."""
@@ -412,14 +399,14 @@ class ContactMechanics:
             faces = self._boundary_faces(bc.boundary, f"mechanics.boundary.{bc.boundary}")
             comps = tuple(int(c) for c in bc.components)
             if not comps or any(c < 0 or c >= d for c in comps):
-                raise InputError(f"mechanics.boundary.{bc.boundary}", f"components must be in 0..{d - 1}, got {comps}")
+                raise InputError(f"displacement.{bc.boundary}", f"components must be in 0..{d - 1}, got {comps}")
             slot = np.unique(self._face_slots(faces))
             comp_mask[np.ix_(slot, comps)] = True
             self._dir_groups.append((slot, comps, bc.value))
         constrained = comp_mask.any(axis=0)
         if not constrained.all() or comp_mask.sum() < d * (d + 1) // 2:
             missing = [("xyz"[i]) for i in range(d) if not constrained[i]]
-            raise InputError("mechanics.boundary", "the displacement is not held: rigid motions are free "
+            raise InputError("displacement", "the displacement is not held: rigid motions are free "
                              + (f"(no Dirichlet condition on the {', '.join(missing)} component)" if missing else
                                 "(too few Dirichlet nodes)")
                              + "; give a displacement (u, ux, uy, uz) on some boundary part")
@@ -435,14 +422,14 @@ class ContactMechanics:
 
     def _face_slots(self, faces: np.ndarray) -> np.ndarray:
         """Point slots on the given boundary faces (their vertices, and edges for order 2)."""
-        if self.order == 1:
+        if isinstance(self.space, DisplacementSpace):
             return face_entries(self.space, faces)[2]
         vs, es = self.space.face_slots(faces)
         return np.concatenate([vs.ravel(), es.ravel()])
 
     def _face_mean(self, faces: np.ndarray, cells: np.ndarray | None = None) -> sp.csr_array:
         """(len(faces), n_slots) face mean of the trace from ``cells`` without bubbles."""
-        if self.order == 1:
+        if isinstance(self.space, DisplacementSpace):
             return face_mean_operator(self.space, faces, cells)
         return self.space.face_mean_operator(faces, cells)
 
@@ -451,7 +438,7 @@ class ContactMechanics:
         P = self.patches
         kp = P.plus_cell
         if not c.beta_scale > 0:
-            raise InputError("contact.beta", f"must be positive, got {c.beta_scale!r}")
+            raise InputError("beta_scale", f"must be positive, got {c.beta_scale!r}")
         beta = c.beta_scale * (2 * self.mu[kp] + self.lam[kp]) / P.diameter
         # per patch: the area-weighted means of the faces' coefficients (equal on a fracture's
         # faces unless given as fields)
@@ -557,6 +544,7 @@ class ContactMechanics:
         contributions, :meth:`_cu_entries` order) and C_λ ((n_c, d, d), β² included)."""
         if self._blocks is None:
             self._setup_blocks(self.c_jump.tocoo())
+        assert self._blocks is not None
         bt, cu_pattern = self._blocks
         return BlockJacobian(self.free_block(), bt, cu_pattern.fill(cu), block_diag_csr(cl))
 
@@ -592,7 +580,7 @@ class ContactMechanics:
             F += ops.value.T @ (wq[:, None] * f)
         for bc in data.traction:
             faces = self._boundary_faces(bc.boundary, f"mechanics.boundary.{bc.boundary}")
-            if self.order == 1:
+            if isinstance(self.space, DisplacementSpace):
                 gv = np.asarray(bc.value(g.face_centroid[faces], t), float).reshape(-1, d)
                 if bc.boundary not in self._face_means:
                     self._face_means[bc.boundary] = face_mean_operator(self.space, faces)
@@ -666,6 +654,7 @@ class ContactMechanics:
         Ru = Au + Bl - F
         Ru_f = Ru[self.free]
         b = self.law.beta
+        Jac: BlockJacobian | OwnedRows | sp.csr_array
         if self.blockwise:
             jrow, jval, keep = self.contact_jump_entries
             Jac = self.jacobian_by_blocks((dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep],
@@ -675,6 +664,7 @@ class ContactMechanics:
                 self._setup_pattern(self.c_jump.tocoo())
             jrow, jval, keep = self.contact_jump_entries
             pat = self.pattern
+            assert pat is not None
             cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
             Jac = pat.fill([self._fixed_vals, pat.take(Block.CONTACT_JUMP, cu),
                             pat.take(Block.CONTACT_MULTIPLIER, dC_dlam * (b * b)[:, None, None])])
@@ -682,9 +672,9 @@ class ContactMechanics:
                 Jac = OwnedRows(Jac, self.layout)
         # scales: the work-conjugate size of each block (energy-norm scaling)
         # (A u over all dofs includes the Dirichlet reactions, the load of a purely kinematic case)
-        su = max(np.linalg.norm(F), np.linalg.norm(Au), np.linalg.norm(Bl), 1e-300)
-        sc = max(np.linalg.norm(self.c_area[:, None] * q), np.linalg.norm((self.c_area / self.law.beta)[:, None]
-                                                                          * lam), 1e-300)
+        su = max(float(np.linalg.norm(F)), float(np.linalg.norm(Au)), float(np.linalg.norm(Bl)), 1e-300)
+        sc = max(float(np.linalg.norm(self.c_area[:, None] * q)),
+                 float(np.linalg.norm((self.c_area / self.law.beta)[:, None] * lam)), 1e-300)
         norms = {"equilibrium": float(np.linalg.norm(Ru_f) / su)}
         if nf:
             norms["contact"] = float(np.linalg.norm(C) / sc)
@@ -728,6 +718,7 @@ class ContactMechanics:
         res = semismooth_newton(lambda x: self.linearise(x, F, udir, q_old, friction), x0, self.solver, incr,
                                 self.newton, verbose)
         u, lam = self.split(res.x, udir)
+        assert res.active_set is not None          # a contact Newton reports its states
         law_state = self.advance_friction(friction, u, q_old, 0.0)
         return MechanicsState(u.reshape(-1, self.dim), self.face_values(lam), self.face_values(res.active_set), t,
                               res.iterations, res.residual, res.history,
@@ -780,11 +771,11 @@ class ContactMechanics:
         u = np.asarray(u, float).reshape(J.shape[1], -1)
         return J[:, :npt] @ u[:npt], J[:, npt:] @ u[npt:]
 
-    def gradients(self, st: MechanicsState) -> np.ndarray:
+    def gradients(self, st: HasDisplacement) -> np.ndarray:
         """(n_cells, d, d) ∇^K u (order 2: the cell mean of ∇u)."""
         return self.ops.gradient(st.u)
 
-    def stress(self, st: MechanicsState) -> np.ndarray:
+    def stress(self, st: HasDisplacement) -> np.ndarray:
         """(n_cells, d, d) σ^K = 2μ ε^K + λ_L div^K I in Pa (without σ⁰ and the Biot term)."""
         G = self.gradients(st)
         eps = 0.5 * (G + G.transpose(0, 2, 1))

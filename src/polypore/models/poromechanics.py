@@ -53,27 +53,27 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Mapping
 
 import numpy as np
 import scipy.sparse as sp
 
-from ..assembly.blocks import Block, PressureRowBlock
-from ..assembly.pattern import BlockPattern, Pattern
+from ..assembly.poro_system import (CoupledJacobian, DilatancyEntries, FlowUnknowns, PressureStabilisation,
+                                    biot_coupling)
 from ..core.errors import InputError, RunError
 from ..core.memory import int32_indices, trim_heap
 from ..mesh import FracturedMesh
 from ..solvers.block_jacobian import BlockJacobian
-from ..parallel.layout import OwnedRows, RowBlock, local_rows, owned_layout, register_layout
-from ..solvers.linear import LinearSolver, release_solver
+from ..parallel.layout import RowBlock, local_rows, owned_layout, register_layout
+from ..solvers.factory import BlockProblem, SolverSource, build, coupled_solvers
+from ..solvers.linear import release_solver
 from ..solvers.newton import PREDICTORS, Linearisation, NewtonOptions, row_weights, semismooth_newton
-from ..solvers.petsc import shared
 from .contact import OPEN, SLIP, linearise_contact
 from .energy import step_energy
 from .flow import FlowData, FlowModel, FlowSolution, _positive
 from .implicit_conductivity import H as LAW_STEP, ImplicitConductivity
-from .mechanics import ContactMechanics, MechanicsData, jacobian_pattern
+from .mechanics import ContactMechanics, MechanicsData
 
 log = logging.getLogger("polypore")
 
@@ -220,8 +220,9 @@ class Poromechanics:
         ``biot_coefficient`` the b of both equations.
     flow_boundary, fracture_boundary, cell_source, fracture_source, alpha, fracture_alpha, cell_point :
         as in :class:`FlowModel` (time-dependent values are evaluated at t^n).
-    solver : LinearSolver, optional
-        Default sparse direct (pardiso if installed, else SuperLU).
+    solver : a ready solver or a :class:`~polypore.solvers.factory.SolverChoice`, optional
+        Default sparse direct (pardiso if installed, else SuperLU); the auxiliary solvers follow
+        from it (:func:`~polypore.solvers.factory.coupled_solvers`).
     newton : NewtonOptions, optional
     initial_traction : (n_ff, d) array, optional
         λ⁰ = −T⁺ of a reference (in-situ) state in equilibrium with loads that the run does not
@@ -245,37 +246,30 @@ class Poromechanics:
     def __init__(self, fm: FracturedMesh, mech_data: MechanicsData, flow_data: FlowData,
                  flow_boundary: Mapping | None = None, *, fracture_boundary: Mapping | None = None,
                  cell_source=0.0, fracture_source=0.0, alpha=None, fracture_alpha=None,
-                 solver: LinearSolver | None = None, newton: NewtonOptions | None = None,
+                 solver: SolverSource = None, newton: NewtonOptions | None = None,
                  initial_traction=None, dilatancy=0.0, pressure_stabilisation: float = STABILISATION,
                  conductivity_aperture: str = "previous", predictor: str = "linear", cell_point: str = "auto"):
         t0 = time.perf_counter()
         if predictor not in PREDICTORS:
-            raise InputError("solver.predictor", f"must be one of {', '.join(PREDICTORS)}, got {predictor!r}")
+            raise InputError("predictor", f"must be one of {', '.join(PREDICTORS)}, got {predictor!r}")
         self.predictor = predictor
         if conductivity_aperture not in APERTURES:
             raise InputError("conductivity_aperture", f"must be one of {', '.join(APERTURES)}, got "
                              f"{conductivity_aperture!r}")
         self.conductivity_aperture = conductivity_aperture
         if mech_data.matrix_pressure is not None or mech_data.fracture_pressure is not None:
-            raise InputError("mechanics.pressure", "the coupled model computes p_m and p_f: leave "
+            raise InputError("matrix_pressure", "the coupled model computes p_m and p_f: leave "
                              "matrix_pressure and fracture_pressure unset")
         self.fm = fm
-        self.solver = solver or LinearSolver("auto")
         self.newton = newton or NewtonOptions(label="poromechanics Newton")
-        backend = getattr(self.solver, "backend", None)
-        block = backend in ("block-amg", "block-petsc")
-        # the mechanics of the initial state and the flow solve are auxiliary: the [solver.petsc]
-        # table applies to them, but only the coupled solver insists that PETSc reads every name
-        # (fieldsplit_m_* exists in the coupled fieldsplit only)
-        aux = replace(self.solver, petsc_options=shared(self.solver.petsc_options)) \
-            if getattr(self.solver, "petsc_options", None) is not None else self.solver
-        self.mech = ContactMechanics(fm, mech_data, aux, self.newton)
+        # the initial equilibrium's and the flow model's solvers, and the coupled one (built once
+        # the pattern's sizes are known: _setup_solver), all decided by solvers/factory.py
+        solvers = coupled_solvers(solver)
+        self._solver_source = solvers.coupled
+        self.mech = ContactMechanics(fm, mech_data, solvers.mechanics, self.newton)
         self.flow = FlowModel(fm, flow_data, flow_boundary, fracture_boundary=fracture_boundary,
                               cell_source=cell_source, fracture_source=fracture_source, alpha=alpha,
-                              fracture_alpha=fracture_alpha, cell_point=cell_point,
-                              solver=(LinearSolver("petsc" if backend == "block-petsc" else "amg", symmetric=True,
-                                                   petsc_options=shared(self.solver.petsc_options))
-                                      if block else aux))
+                              fracture_alpha=fracture_alpha, cell_point=cell_point, solver=solvers.flow)
         self.dim = fm.mesh.dim
         self.n_ff = fm.network.n_faces
         self.biot = float(flow_data.biot_coefficient)
@@ -287,9 +281,9 @@ class Poromechanics:
         self.lam0 = lam0                                        # λ⁰ = −T⁺ of the reference state, Pa
         tpsi = np.broadcast_to(np.asarray(dilatancy, float), (nf,)).copy()
         if not np.all((tpsi >= 0) & np.isfinite(tpsi)):
-            raise InputError("flow.dilatancy", "tan ψ must be finite and ≥ 0")
+            raise InputError("dilatancy", "tan ψ must be finite and ≥ 0")
         self.tan_psi = tpsi                                     # tan ψ (n_ff,), dimensionless
-        self.u_ref = None                                       # u⁰ of the dilatancy law, set by initial_state
+        self.u_ref: np.ndarray | None = None                    # u⁰ of the dilatancy law, set by initial_state
         self.asm = self.flow.assembler
         self.dofs = self.asm.dofs
         self.n_flow = self.dofs.n + fm.mesh.n_cells
@@ -311,27 +305,12 @@ class Poromechanics:
 
     # ---- set-up -------------------------------------------------------------------------
     def _setup_coupling(self):
-        """G (n_dofs, n_flow): b ∫_K div v on cells (|K| b div^K v for order 1, by the operators'
-        quadrature for order 2), −|σ| [[·]]·n⁺ on fracture pressures."""
-        mech, d = self.mech, self.dim
+        """G (n_dofs, n_flow) (:func:`~polypore.assembly.poro_system.biot_coupling`), b ∫_K div v on
+        cells and −|σ| [[·]]·n⁺ on fracture pressures; its rows under mpiexec."""
+        mech = self.mech
         nc = self.fm.mesh.n_cells
-        qcell, qw = mech.ops.qp_cell, mech.ops.qp_weight     # order 1: (K, |K|), one row of D per cell
-        rows, cols, vals = [], [], []
-        for j in range(d):
-            Dj = mech.ops.D[j].tocoo()
-            rows.append(Dj.col.astype(np.int64) * d + j)          # div v = Σ_j ∂_j v_j
-            cols.append(self.dofs.n + qcell[Dj.row].astype(np.int64))
-            vals.append(Dj.data * (self.biot * qw)[Dj.row])
-        if self.n_ff:
-            J = mech.jump_scalar.tocoo()
-            r = (J.col.astype(np.int64)[:, None] * d + np.arange(d)).ravel()
-            c = np.repeat(self.dofs.frac[J.row], d)
-            v = (-(J.data * mech.face_area[J.row])[:, None] * mech.normal[J.row]).ravel()
-            rows += [r]
-            cols += [c]
-            vals += [v]
-        G = int32_indices(sp.csr_array((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                                       shape=(mech.n_dofs, self.n_flow)))
+        G = biot_coupling(mech.ops.D, mech.ops.qp_cell, mech.ops.qp_weight, self.biot, mech.jump_scalar,
+                          mech.face_area, mech.normal, self.dofs.frac, self.dofs.n, mech.n_dofs, self.n_flow)
         # the constant parts of pressure_scale, from the whole G (before it is cut to rows)
         a = mech.A.diagonal()[mech.free]
         self._elastic_diag = float(np.mean(a))                     # (2μ + λ_L) h^{d−2}, N/m (Pa in 2D)
@@ -349,28 +328,14 @@ class Poromechanics:
         try:
             delta = float(delta)
         except (TypeError, ValueError):
-            raise InputError("flow.pressure_stabilisation", f"must be a number ≥ 0, got {delta!r}") from None
+            raise InputError("pressure_stabilisation", f"must be a number ≥ 0, got {delta!r}") from None
         if not (np.isfinite(delta) and delta >= 0):
-            raise InputError("flow.pressure_stabilisation", f"must be a finite number ≥ 0, got {delta}")
+            raise InputError("pressure_stabilisation", f"must be a finite number ≥ 0, got {delta}")
         self.stabilisation = delta
-        faces, pairs, dist, width, pos = self.asm.cell_pairs()
         g = self.fm.mesh.geometry
-        # two-point flux of −div(κ ∇·), κ = δ b² h_σ²/(λ_L+2μ) per side: |σ|/(d_Kσ/κ_K + d_Lσ/κ_L)
-        E = 2 * self.mech.mu + self.mech.lam                                  # λ_L + 2μ per cell, Pa
-        h = width.mean(axis=1)                                                # h_σ, m
-        K, L = pairs.T
-        w = delta * self.biot ** 2 * g.face_area[faces] * h * h / (dist[:, 0] * E[K] + dist[:, 1] * E[L])
-        # the stabilisation flux does not depend on the permeability: across a barrier (C6's
-        # caprocks, 10⁶ below the reservoir) it would carry fluid through the seal. Factor
-        # harmonic/arithmetic mean of the two normal permeabilities: 1 in a homogeneous
-        # region, 4 k_L/k_K across a contrast k_L ≪ k_K.
-        n = g.face_normal[faces]
-        kn = np.einsum("fi,fcij,fj->fc", n, self.flow.permeability[pairs], n)      # n·K n per side, m²
-        w *= 4 * kn[:, 0] * kn[:, 1] / (kn[:, 0] + kn[:, 1]) ** 2
-        keep = w > 0                                                          # none when δ = 0 or b = 0
-        self.stabilisation_pairs = pairs[keep]                               # (n_pairs, 2) cells (K, L)
-        self.stabilisation_weights = w[keep]                                 # δ w_σ, m^d/Pa
-        self._stab_pos = pos[keep]                                           # their (cell, face) entries
+        self.stab = PressureStabilisation.build(delta, self.asm.cell_pairs(), g.face_area, g.face_normal,
+                                                2 * self.mech.mu + self.mech.lam, self.biot, self.flow.permeability,
+                                                self.dofs.n, self.n_flow)
 
     def stabilisation_matrix(self) -> sp.csr_array:
         """S_δ (n_flow, n_flow), m³/Pa: the pressure-jump stabilisation of the mass balance.
@@ -387,84 +352,59 @@ class Poromechanics:
         k_K = n_σ·K_K n_σ. The step adds S_δ(p^n − p^{n−1}, q) to the Δt-scaled mass balances
         (m³ per step).
         """
-        r, c = self._stab_rc()
-        return sp.csr_array((self._stab_vals(), (r, c)), shape=(self.n_flow, self.n_flow))
+        return self.stab.matrix()
 
-    def _stab_rc(self) -> tuple[np.ndarray, np.ndarray]:
-        """(rows, cols) (4 n_pairs,) of S_δ's entries: (K, K), (L, L), (K, L), (L, K) per pair
-        (computed when needed: the model keeps only the pairs and weights)."""
-        K, L = self.dofs.n + self.stabilisation_pairs.T
-        return np.concatenate([K, L, K, L]), np.concatenate([K, L, L, K])
+    @property
+    def stabilisation_pairs(self) -> np.ndarray:
+        """(n_pairs, 2) cells (K, L) of the faces of S_δ."""
+        return self.stab.pairs
 
-    def _stab_vals(self) -> np.ndarray:
-        """(4 n_pairs,) S_δ's entries in the order of :meth:`_stab_rc`, m³/Pa."""
-        w = self.stabilisation_weights
-        return np.concatenate([w, w, -w, -w])
+    @property
+    def stabilisation_weights(self) -> np.ndarray:
+        """(n_pairs,) δ w_σ of S_δ, m^d/Pa."""
+        return self.stab.weights
 
     def stabilisation_jumps(self, p: np.ndarray) -> np.ndarray:
         """(n_pairs,) p_K − p_L across the faces of S_δ (``stabilisation_pairs``) for a (n_flow,)
         pressure vector, Pa; S_δ(p, q) = Σ ``stabilisation_weights`` × jumps(p) × jumps(q)."""
-        K, L = (self.dofs.n + self.stabilisation_pairs).T
-        return p[K] - p[L]
+        return self.stab.jumps(p)
 
     def _setup_flow_dofs(self):
-        ids, _, _ = self.flow.dirichlet(0.0)        # the Dirichlet set does not depend on t
-        fixed = np.zeros(self.n_flow, bool)
-        fixed[ids] = True
-        self.flow_fixed = np.flatnonzero(fixed)
-        self.flow_free = np.flatnonzero(~fixed)
-        self.flow_free_index = np.full(self.n_flow, -1, np.int64)
-        self.flow_free_index[self.flow_free] = np.arange(self.flow_free.size)
-        # pattern of the uncondensed flow matrix: fill once to fix its CSR structure; the step
-        # matrix adds the stabilisation's cell–cell entries, so A_dt gets one structure for both
-        # (step_context picks its free–free entries by position in A_dt.data)
-        # (on N ranks: this rank's rows of it, flow_layout)
+        """The flow unknowns (every flow dof but the Dirichlet pressures, whose set does not depend
+        on t) and the one structure of the step matrix Δt A_f + S_δ (:class:`FlowUnknowns`)."""
+        ids, _, _ = self.flow.dirichlet(0.0)
         Af = self.asm.full_matrix(np.ones(self._nc), np.ones(self.n_ff), np.ones(self.n_ff), np.zeros(self.n_ff))
-        r = np.repeat(np.arange(self.n_flow), np.diff(Af.indptr))
-        fl = self.flow_layout
-        self._af_pattern = BlockPattern.build([(r, Af.indices), self._stab_rc()], Af.shape,
-                                              row_local=None if fl is None else fl.local_index,
-                                              n_rows=None if fl is None else fl.n_local)
-        pat = self._af_pattern.pattern
-        r = np.repeat(np.arange(pat.shape[0]), np.diff(pat.indptr))
-        if fl is not None:
-            r = fl.owned[r]                                   # local rows → flow unknowns
-        c = pat.indices.astype(np.int64)
-        self._af_keep = (self.flow_free_index[r] >= 0) & (self.flow_free_index[c] >= 0)
-        it = np.int32 if self.n_flow < 2**31 - 1 else np.int64
-        keep = self._af_keep
-        self._af_rc = (self.flow_free_index[r[keep]].astype(it), self.flow_free_index[c[keep]].astype(it))
+        self.unknowns = FlowUnknowns.build(ids, Af, self.stab.rc(), self.dofs, self.n_flow, self.flow_layout)
+        self.flow_fixed, self.flow_free = self.unknowns.fixed, self.unknowns.free
+        self.flow_free_index = self.unknowns.free_index
+        self._flow_kind = self.unknowns.kind
 
     def _setup_pattern(self):
-        """Every (row, col) contribution of the step Jacobian, restricted to unknowns, built once
-        (on N ranks: this rank's rows, distributed numbering, :func:`.mechanics.jacobian_pattern`);
-        with a block solver on one process the blocks' own patterns instead (:meth:`_setup_blocks`)."""
+        """The step Jacobian's structure, built once (:class:`~polypore.assembly.poro_system.CoupledJacobian`):
+        every block's (row, col) contributions restricted to unknowns (on N ranks this rank's rows,
+        distributed numbering), or with a block solver on one process the pressure blocks' own
+        patterns (the (u, λ) blocks are the mechanics model's)."""
         mech, d, nf = self.mech, self.dim, self.n_ff
         nfree = mech.free.size
         nl = mech.n_c * d
-        npf = self.flow_free.size
-        po = nfree + nl                                              # offset of the pressures
-        n = po + npf
         self.layout = owned_layout(self.fm.mesh, self.dof_owner)    # None serially
-        self.n_unknowns = n
+        self.n_unknowns = nfree + nl + self.flow_free.size
         self._setup_scaling()
         self._setup_solver()
         # the Jacobian goes to the solver by blocks (a block solver on one process; no assembled
         # matrix: solvers/block_jacobian.py); decided here, for the model's lifetime (a solver
         # wrapped later, e.g. by benchmarks/dump_jacobians.py, gets what this one got)
-        self.blockwise = bool(getattr(self.solver, "takes_blocks", False)) and self.layout is None
-        self.pattern = self._blocks = None
+        self.blockwise = bool(self.solver.takes_blocks) and self.layout is None
         self._implicit = None
         if self.conductivity_aperture == "current" and self.n_ff:
             if self.layout is not None or self.flow_layout is not None:
                 raise InputError("conductivity_aperture", "\"current\" runs on one process only; use "
                                  "\"previous\" (the default) under mpiexec")
-            afp = self._af_pattern
+            afp = self.unknowns.pattern
             self._implicit = ImplicitConductivity(self.asm.fracture_contributions(),
                                                   afp.pattern.slot[afp.starts[0]:afp.starts[1]],
                                                   self.flow_free_index, mech.jump_scalar, mech.free_index, d)
         imp_rc = self._implicit.rc if self._implicit is not None else (np.zeros(0, np.int64),) * 2
-        J = mech.jump_scalar.tocoo()                                 # per face: the dilatant aperture
         # G: u rows × p columns (the rows of G this rank keeps), and p rows × u columns from the
         # rows of Gᵀ it keeps: the same values, so that each rank has its rows of both blocks
         G = local_rows(self.G).tocoo()
@@ -475,82 +415,32 @@ class Poromechanics:
         trow = T.row if self.flow_layout is None else self.flow_layout.owned[T.row]
         tr, tc = self.flow_free_index[trow], mech.free_index[T.col]
         kt = (tr >= 0) & (tc >= 0)
-        # dilatancy: ∂(|σ| tan ψ |[[u − u⁰]]_τ|)/∂u in the fracture-pressure rows, one entry per
-        # (jump nonzero, component) whose row and column are unknowns
-        fcol = mech.free_index[J.col.astype(np.int64)[:, None] * d + np.arange(d)]       # (nnz, d)
-        frow = self.flow_free_index[self.dofs.frac[J.row]] if nf else np.zeros(0, np.int64)
-        dkeep = (fcol >= 0) & (frow[:, None] >= 0)                    # (nnz, d): one row per face
-        self._dil = (J.row, J.data, dkeep)
-        drow, dcol = np.broadcast_to(frow[:, None], dkeep.shape)[dkeep], fcol[dkeep]
-        it = np.int32 if n < 2**31 - 1 else np.int64
-        if self.blockwise:
-            self._setup_blocks((gr[kg], gc[kg], G.data[kg]), (tr[kt], tc[kt], T.data[kt]), (drow, dcol), imp_rc)
-            return
-        blocks, values = mech.jacobian_blocks(mech.c_jump.tocoo())   # A, Bᵀ, C_u, C_λ (per patch)
-        self._cu = mech.contact_jump_entries
-        ar, ac = self._af_rc
-        blocks += [(gr[kg], po + gc[kg]), (po + tr[kt], tc[kt]), (po + ar, po + ac), (po + drow, dcol),
-                   (po + imp_rc[0], imp_rc[1])]
-        self.pattern = pat = jacobian_pattern(blocks, n, self.layout)
-        # the elasticity and multiplier blocks never change; A's values are put into each step's
-        # data from A itself (step_context) rather than kept as a data array of the whole pattern
-        # (nnz × 8 bytes, 86 MB on the 30,000-cell study); A's entries have distinct slots
-        self._a_distinct = pat.distinct(Block.ELASTIC)
-        self._bt_vals = pat.take(Block.MULTIPLIER, values[Block.MULTIPLIER])
-        del values, blocks                 # the (row, col) lists: int64 per contribution
-        self._g_u = (pat.take(Block.COUPLING, G.data[kg]), gc[kg].astype(it))      # values (m^d), p column
-        self._g_p = (pat.take(Block.BIOT, T.data[kt]), tr[kt].astype(it))      # values (m^d), p row
+        frac_free = self.flow_free_index[self.dofs.frac] if nf else np.zeros(0, np.int64)
+        self._dil = DilatancyEntries.build(mech.jump_scalar, mech.free_index, frac_free, d)
+        # the mechanics' (u, λ) blocks are built inside the call: the jacobian drops its (row,
+        # col) lists (int64 per contribution) once the pattern is built
+        self.jacobian = CoupledJacobian(None if self.blockwise else mech.jacobian_blocks(mech.c_jump.tocoo()),
+                                        mech.contact_jump_entries, (gr[kg], gc[kg], G.data[kg]),
+                                        (tr[kt], tc[kt], T.data[kt]), self._dil, imp_rc, self.unknowns, nfree, nl,
+                                        self.layout, self.blockwise)
         del G, T                           # coo copies of the coupling blocks
         if self.layout is not None:
             register_layout(self.solver, self.layout)
 
-
     def _setup_solver(self):
-        """The block solvers of ``solver.linear`` = block-amg, block-direct, block-petsc."""
-        nfree, d = self.mech.free.size, self.dim
-        nl = self.mech.n_c * d
-        backend = getattr(self.solver, "backend", None)
-        if backend in ("block-amg", "block-direct"):
-            from ..solvers.block_contact import BlockPoroSolver
+        """The coupled solver, once: the one given, or built from the choice
+        (:func:`~polypore.solvers.factory.build`; a block backend from :meth:`block_problem`)."""
+        self.solver = build(self._solver_source, self.block_problem)
+        self._solver_source = None
 
-            # the two-level pressure preconditioner's coarse unknowns (cell and fracture-cell
-            # pressures) and the fracture subsystem its smoother solves exactly (fracture cells,
-            # fracture edges, traces); kinds as in block_counts
-            k = self._flow_kind
-            self.solver = BlockPoroSolver(nfree, d, nl, self.mech.condensation(),
-                                          near_nullspace=self.mech.rigid_modes(),
-                                          mechanics="direct" if backend == "block-direct" else "amg",
-                                          pressure_groups=(np.isin(k, (0, 3)), np.isin(k, (2, 3, 4))))
-        elif backend == "block-petsc":
-            from ..solvers.petsc_fieldsplit import PetscBlockPoroSolver
-
-            self.solver = PetscBlockPoroSolver(nfree, d, nl, self.mech.condensation(),
-                                               near_nullspace=self.mech.rigid_modes(),
-                                               options=self.solver.petsc_options)
-
-    def _setup_blocks(self, g_up, g_pu, dil, imp):
-        """The patterns of the Jacobian's pressure blocks for :meth:`_linearise` by blocks (the
-        (u, λ) blocks are the mechanics model's, :meth:`.mechanics.ContactMechanics.jacobian_by_blocks`).
-
-        Parameters
-        ----------
-        g_up, g_pu : (rows, cols, values) of G (free u × free p) and Gᵀ (free p × free u), m^d
-        dil : (rows, cols) of the dilatancy entries (free p × free u)
-        imp : (rows, cols) of the implicit conductivities' entries (free p × free u; empty without)
-        """
-        nfree, npf = self.mech.free.size, self.flow_free.size
-        it = np.int32 if max(nfree, npf) < 2**31 - 1 else np.int64
-        up = Pattern.build(g_up[0], g_up[1], (nfree, npf))
-        pu = BlockPattern.build([(g_pu[0], g_pu[1]), dil, imp], (npf, nfree))
-        # F's entries, from the flow pattern's free part: rows ascending and columns ascending in
-        # each row (the free numbering keeps the order), so its CSR structure is (ar, ac) itself
-        ar, ac = self._af_rc
-        f_ptr = np.zeros(npf + 1, it)
-        np.cumsum(np.bincount(ar, minlength=npf), out=f_ptr[1:])
-        self._blocks = {"up": (up, g_up[2], g_up[1].astype(it)),
-                        "pu": (pu, pu.take(PressureRowBlock.BIOT, g_pu[2]), g_pu[0].astype(it)),
-                        "pp": (f_ptr, ac)}
-        self._cu = self.mech.contact_jump_entries
+    def block_problem(self) -> BlockProblem:
+        """The step system as the block solvers see it (:mod:`polypore.solvers.factory`): the
+        mechanics' blocks, and the two-level pressure preconditioner's coarse unknowns (cell and
+        fracture-cell pressures) and the fracture subsystem its smoother solves exactly (fracture
+        cells, fracture edges, traces); kinds as in block_counts."""
+        mech, k = self.mech, self._flow_kind
+        return BlockProblem(mech.free.size, self.dim, mech.n_c * self.dim, mech.condensation(), mech.rigid_modes(),
+                            pressure_groups=(np.isin(k, (0, 3)), np.isin(k, (2, 3, 4))), coupled=True)
 
     def release_solver(self) -> None:
         """Free the linear solver's matrices and preconditioner set-ups (PETSc's, where it has any)
@@ -566,22 +456,12 @@ class Poromechanics:
 
     # ---- scaling and step coefficients ----------------------------------------------------
     def _setup_scaling(self):
-        """The flow residual norm's parts (:meth:`_setup_coupling` has those of :meth:`pressure_scale`)."""
-        d = self.dofs
+        """The flow residual norm's parts (:meth:`_setup_coupling` has those of :meth:`pressure_scale`;
+        the equation kinds are the flow unknowns', :class:`FlowUnknowns`)."""
         GT = self.GT
         # |Gᵀ| shares Gᵀ's index arrays (a RowBlock's __abs__ does so too)
         self._abs_GT = abs(GT) if isinstance(GT, RowBlock) else \
             type(GT)((np.abs(GT.data), GT.indices, GT.indptr), shape=GT.shape)
-        # equation kind of each flow row that is an unknown: 0 cell mass balance, 1 face flux
-        # continuity, 2 matrix–fracture exchange (traces), 3 fracture mass balance, 4 fracture-edge
-        # flux continuity
-        kind = np.zeros(self.n_flow, np.int64)
-        kind[d.face[d.face >= 0]] = 1
-        kind[d.trace.ravel()] = 2
-        kind[d.frac] = 3
-        kind[d.edge] = 4
-        self._flow_kind = kind[self.flow_free]
-        self._kind_count = np.bincount(self._flow_kind, minlength=5)     # rows per kind (fixed)
 
     def block_counts(self) -> dict:
         """Unknowns per block (summary.json ``mesh.blocks``): free displacement dofs at points
@@ -590,8 +470,8 @@ class Poromechanics:
         faces, fracture edges), plus the total per cell."""
         mech, d = self.mech, self.dim
         npt = mech.space.n_point_slots * d
-        k = self._kind_count
-        out = {"displacement_points": int(np.count_nonzero(mech.free < npt)),
+        k = self.unknowns.kind_count
+        out: dict[str, float] = {"displacement_points": int(np.count_nonzero(mech.free < npt)),
                "displacement_bubbles": int(np.count_nonzero(mech.free >= npt)),
                "multipliers": int(mech.n_c * d),
                "pressure_cells": int(k[0]), "pressure_faces": int(k[1]), "pressure_traces": int(k[2]),
@@ -629,9 +509,9 @@ class Poromechanics:
                                          float), aperture.shape)
         cond = np.broadcast_to(np.asarray(data.conductivity_law(aperture), float), aperture.shape)
         if not (np.all(lam > 0) and np.all(np.isfinite(lam))):
-            raise InputError("flow.normal_transmissivity_law", "must return positive finite values (m)")
+            raise InputError("normal_transmissivity_law", "must return positive finite values (m)")
         if not (np.all(cond >= 0) and np.all(np.isfinite(cond))):
-            raise InputError("flow.conductivity_law", "must return non-negative finite values (m³)")
+            raise InputError("conductivity_law", "must return non-negative finite values (m³)")
         return area * lam / self.flow.viscosity, cond / self.flow.viscosity
 
     def conductivity_growth(self, before: np.ndarray, after: np.ndarray) -> float:
@@ -670,8 +550,7 @@ class Poromechanics:
         ex, fc = self.conductivities(old.aperture)
         Af = self.asm.full_matrix(s_cell, ex, fc, s_frac)
         # the stabilisation acts on the increment: S_δ p^n in the matrix, S_δ p^{n−1} on the right
-        pat = self._af_pattern
-        A_dt = pat.fill([pat.take(0, Af.data * dt), pat.take(1, self._stab_vals())])
+        A_dt = self.unknowns.step_matrix(Af.data * dt, self.stab.values())
         if self.flow_layout is not None:
             A_dt = RowBlock(A_dt, self.flow_layout)
         ids, vals, qflux = self.flow.dirichlet(t)
@@ -683,9 +562,7 @@ class Poromechanics:
         ok = d.face >= 0
         r[d.face[ok]] -= qflux[ok]
         r_dt = r * dt
-        sj = self.stabilisation_weights * self.stabilisation_jumps(old.p)      # S_δ p^{n−1}, per face
-        K, L = (d.n + self.stabilisation_pairs).T
-        r_dt += np.bincount(K, sj, self.n_flow) - np.bincount(L, sj, self.n_flow)
+        r_dt += self.stab.apply(old.p)                                         # S_δ p^{n−1}
         p_dir = np.zeros(self.n_flow)
         p_dir[ids] = vals
         return A_dt, r_dt, p_dir
@@ -758,9 +635,11 @@ class Poromechanics:
             x0 = np.zeros(nfree + mech.n_c * d)
             x0[nfree:] = mech.closed_start(F)
             res = semismooth_newton(lambda x: mech.linearise(x, F, udir, None), x0, mech.solver,
-                                    lambda dx, x: float(np.linalg.norm(dx) / max(np.linalg.norm(x + dx), 1e-300)),
+                                    lambda dx, x: float(np.linalg.norm(dx)
+                                                        / max(float(np.linalg.norm(x + dx)), 1e-300)),
                                     NewtonOptions(**{**self.newton.__dict__, "label": "initial equilibrium"}), verbose)
             u, lam = mech.split(res.x, udir)
+            assert res.active_set is not None          # a contact Newton reports its states
             lam, state = mech.face_values(lam), mech.face_values(res.active_set)
             u = u.reshape(-1, d)
             # the contact Jacobian's pattern, and the contact solver's PETSc matrices and AMG, are
@@ -853,55 +732,34 @@ class Poromechanics:
             w = mech.face_area * self.tan_psi
             Rf[self.dofs.frac] += w * (rel - rel_old)
             terms[self.dofs.frac] += w * rel
-            jrow_, jval_, dkeep = self._dil
-            dil = (s[self.dofs.frac[jrow_]] * w[jrow_] * jval_)[:, None] * that[jrow_]   # (nnz, d)
-            dil_vals = -dil[dkeep]
+            dil_vals = self._dil.values(s[self.dofs.frac] * w, that)
         elif nf:
-            dil_vals = np.zeros(int(self._dil[2].sum()))
+            dil_vals = self._dil.zeros()
         b = mech.law.beta
-        jrow, jval, keep = self._cu
+        jrow, jval, keep = self.jacobian.contact_entries
         cu = (dC_dq[jrow] * (jval * b[jrow])[:, None, None])[keep]
+        cl = dC_dlam * (b * b)[:, None, None]
+        implicit = None if imp_vals is None else (imp_vals, imp_dpp)
         if self.blockwise:
-            Gup, pu_data, Fp = j_step
-            pu = self._blocks["pu"][0]
-            if np.any(dil_vals) or imp_vals is not None:
-                pu_data = pu_data.copy()
-                if np.any(dil_vals):
-                    pu.add(pu_data, PressureRowBlock.DILATANCY, dil_vals)
-                if imp_vals is not None:
-                    pu.add(pu_data, PressureRowBlock.IMPLICIT_CONDUCTIVITY, imp_vals)
-                    Fp = sp.csr_array((Fp.data - imp_dpp, Fp.indices, Fp.indptr), shape=Fp.shape)
-            Jm = mech.jacobian_by_blocks(cu, dC_dlam * (b * b)[:, None, None])
-            Jac = BlockJacobian(Jm.uu, Jm.ul, Jm.lu, Jm.ll, Gup, pu.matrix(pu_data), Fp)
+            Jm = mech.jacobian_by_blocks(cu, cl)
+            Jac = BlockJacobian(Jm.uu, Jm.ul, Jm.lu, Jm.ll, *self.jacobian.iterate(j_step, cu, cl, dil_vals, implicit))
         else:
-            pat = self.pattern
-            # blocks in pattern order (contact jump, contact multiplier, then dilatancy) after the
-            # step's coupling, Biot and flow blocks: the sums of pat.fill bit for bit
-            data = pat.add(j_step.copy(), Block.CONTACT_JUMP, pat.take(Block.CONTACT_JUMP, cu))
-            cl = pat.take(Block.CONTACT_MULTIPLIER, dC_dlam * (b * b)[:, None, None])
-            pat.add(data, Block.CONTACT_MULTIPLIER, cl)
-            pat.add(data, Block.DILATANCY, pat.take(Block.DILATANCY, dil_vals))
-            if imp_vals is not None:
-                pat.add(pat.add(data, Block.IMPLICIT_CONDUCTIVITY, pat.take(Block.IMPLICIT_CONDUCTIVITY, imp_vals)),
-                        Block.FLOW, pat.take(Block.FLOW, -imp_dpp))
-            Jac = pat.matrix(data)
-            del data
-            if self.layout is not None:
-                Jac = OwnedRows(Jac, self.layout)
+            Jac = self.jacobian.iterate(j_step, cu, cl, dil_vals, implicit)
         free, ff = mech.free, self.flow_free
-        su = max(np.linalg.norm(F), np.linalg.norm(Au), np.linalg.norm(Bl), np.linalg.norm(Gp), 1e-300)
+        su = max(float(np.linalg.norm(F)), float(np.linalg.norm(Au)), float(np.linalg.norm(Bl)),
+                 float(np.linalg.norm(Gp)), 1e-300)
         # flow: each kind of equation against the sum of the magnitudes of its own terms (docs/
         # poromechanics.md, "Residual scaling"); net sums such as ‖A_f p‖ cancel (b = 0, or the
         # exchange of a fracture at the matrix's pressure) and left Newton stuck at ratios 1e-7 … 1
-        kind = self._flow_kind
+        kind = self.unknowns.kind
         num = np.bincount(kind, Rf[ff] ** 2, minlength=5)
         den = np.bincount(kind, terms[ff] ** 2, minlength=5)
-        den = floored_kind_scales(den, self._kind_count)
+        den = floored_kind_scales(den, self.unknowns.kind_count)
         flow = float(np.sqrt(np.max(num / np.maximum(den, 1e-300)))) if ff.size else 0.0
         norms = {"equilibrium": float(np.linalg.norm(Ru[free]) / su), "flow": flow}
         if nf:
-            sc = max(np.linalg.norm(mech.c_area[:, None] * qc), np.linalg.norm((mech.c_area / b)[:, None] * lam),
-                     1e-300)
+            sc = max(float(np.linalg.norm(mech.c_area[:, None] * qc)),
+                     float(np.linalg.norm((mech.c_area / b)[:, None] * lam)), 1e-300)
             norms["contact"] = float(np.linalg.norm(C) / sc)
         counts = mech.state_counts(state) if nf else {}
         res = np.concatenate([Ru[free], (C * b[:, None]).ravel(), -s[ff] * Rf[ff]])
@@ -939,9 +797,9 @@ class Poromechanics:
         A = sp.csr_array((A_dt.data + dA, A_dt.indices, A_dt.indptr), shape=A_dt.shape)
         abs_A = sp.csr_array((np.abs(A.data), A_dt.indices, A_dt.indptr), shape=A_dt.shape)
         pu = imp.coupling_values(p, (hi[0] - lo[0]) / h2, (hi[1] - lo[1]) / h2, grad, s, dt)
-        ar, ac = self._af_rc
+        ar, ac = self.unknowns.rc
         sf = s[self.flow_free]
-        return A, abs_A, pu, dA[self._af_keep] * sf[ar] * sf[ac]
+        return A, abs_A, pu, dA[self.unknowns.keep] * sf[ar] * sf[ac]
 
     def friction_state(self, st: PoroState) -> np.ndarray:
         """(n_c, k) the friction law's state of ``st`` (the law's initial state if it has none)."""
@@ -965,11 +823,9 @@ class Poromechanics:
         u_old = old.u.ravel()
         q_old = (mech.Jcv @ u_old).reshape(mech.n_c, d)             # patch jumps of the old state
         sf = s[self.flow_free]
-        if hasattr(self.solver, "pressure_nullspace"):
-            # the AMG of the pressure Schur block needs the scaled image of a constant pressure
-            self.solver.pressure_nullspace = 1.0 / sf
-        ar, ac = self._af_rc
-        af_vals = local_rows(A_dt).data[self._af_keep] * sf[ar] * sf[ac]  # rows and columns scaled by s
+        # the AMG of the pressure Schur block needs the scaled image of a constant pressure
+        self.solver.set_pressure_nullspace(1.0 / sf)
+        af_vals = self.unknowns.scaled_free_values(local_rows(A_dt).data, sf)   # rows and columns scaled by s
         # magnitudes of the flow terms at t^{n−1} (the old storage, the old displacement's part of
         # the Biot term, Δt A_f p^{n−1}): the round-off of a Newton step from the old state is
         # ε |J| |x − x^{n−1}|, so they belong to the size of each row
@@ -979,29 +835,9 @@ class Poromechanics:
         if self.n_ff and np.any(self.tan_psi > 0):
             rel_old = self.tangential_slip(self.jumps(old.u))[0]
             terms_old[self.dofs.frac] += mech.face_area * self.tan_psi * rel_old
-        # the Jacobian's data without the contact blocks (2, 3, 7, added per iteration by _linearise):
-        # the fixed blocks and the step's coupling and flow blocks; no block of 2–3 shares an entry
-        # with 4–6 (contact rows against displacement and pressure rows), so adding 4–6 before them
-        # gives pat.fill's sums bit for bit
-        cs = self._coupling_sign
-        if self.blockwise:
-            # the step's pressure blocks (u, λ blocks: per iterate, from the mechanics model)
-            up, up_vals, up_col = self._blocks["up"]
-            pu, pu_vals, pu_row = self._blocks["pu"]
-            f_ptr, f_col = self._blocks["pp"]
-            npf = self.flow_free.size
-            j_step = (up.fill(-cs * (up_vals * sf[up_col])), pu.add(pu.zeros(), 0, -(pu_vals * sf[pu_row])),
-                      sp.csr_array((-af_vals, f_col, f_ptr), shape=(npf, npf)))
-        else:
-            g_vals = (self._g_u[0] * sf[self._g_u[1]], self._g_p[0] * sf[self._g_p[1]])   # pressures scaled by s
-            pat = self.pattern
-            fill = pat.put if self._a_distinct else pat.add
-            j_step = fill(pat.zeros(), Block.ELASTIC, pat.take(Block.ELASTIC, mech.elastic_block_values()))
-            pat.add(j_step, Block.MULTIPLIER, self._bt_vals)
-            pat.add(j_step, Block.COUPLING, -cs * g_vals[0])
-            pat.add(j_step, Block.BIOT, -g_vals[1])
-            j_step = pat.add(j_step, Block.FLOW, -af_vals)
-            del g_vals
+        # the Jacobian's data without the contact, dilatancy and implicit blocks (per iterate)
+        j_step = self.jacobian.step_data(None if self.blockwise else mech.elastic_block_values(), sf,
+                                         self._coupling_sign, af_vals)
         del af_vals
         # the implicit conductivities' reference: the coefficients A_dt was built with, and Δt
         imp_old = (*self.conductivities(old.aperture), dt) if self._implicit is not None else None
@@ -1053,10 +889,12 @@ class Poromechanics:
         udir, p_dir, s = ctx.u_dir, ctx.p_dir, ctx.pressure_scale
         nfree, nl = mech.free.size, mech.n_c * d
         t1 = time.perf_counter()
-        k0 = len(getattr(self.solver, "iterations", []))
+        # the step reports the Krylov iterations of the solvers Newton drives (the block solvers)
+        counted = self.solver.takes_target
+        k0 = len(self.solver.krylov_iterations) if counted else 0
 
         def krylov_since():
-            return [int(k) for k in getattr(self.solver, "iterations", [])[k0:]]
+            return [int(k) for k in self.solver.krylov_iterations[k0:]] if counted else []
 
         def incr(dx, x):
             out = 0.0
@@ -1067,13 +905,12 @@ class Poromechanics:
 
         # an exact first solve only when this step is expected to be linear (solvers/newton.py,
         # forcing terms): after a step that converged in one iteration, or that left every face's
-        # state as it found it (a direct solve needs two iterations there, the second confirming:
-        # without this rule emerald-injection with block-direct took 23 Newton iterations against
-        # PARDISO's 16). After a step whose active set moved it is loose, and so is the run's first
-        # step: nothing says its active set stays, and from a state at rest its weighted norm holds
-        # the source terms alone (the fluxes are not terms yet), so "exact" there asked ~100× more
-        # than the next iterate's norm needs (weak-scaling day 1 at 3·10⁴ cells: 39 + 14 + 15 GMRES
-        # iterations, 9 + 25 + 10 loose, both 3 Newton iterations; docs/iterative_cornerpoint.md)
+        # state as it found it (a direct solve needs two iterations there, the second confirming;
+        # without this rule block-direct needs more Newton iterations than PARDISO). After a step
+        # whose active set moved it is loose, and so is the run's first step: nothing says its
+        # active set stays, and from a state at rest its weighted norm holds the source terms alone
+        # (the fluxes are not terms yet), so "exact" there asks far more than the next iterate's
+        # norm needs (docs/iterative_cornerpoint.md, "Measurements cited by the code")
         first_tight = self._last_newton is not None and (self._last_newton <= 1 or self._last_settled)
         try:
             res = semismooth_newton(lambda x: self._linearise(x, ctx), x0, self.solver, incr, self.newton, verbose,
@@ -1089,6 +926,7 @@ class Poromechanics:
         ap = self.aperture_of(u)
         flux_ap = np.maximum(ap, self.closed_aperture) if self._implicit is not None else old.aperture
         friction = mech.advance_friction(ctx.friction_state, u, ctx.q_old, dt)
+        assert res.active_set is not None
         new = PoroState(t, u, mech.face_values(lam), p, ap, np.asarray(mech.face_values(res.active_set), np.int8),
                         flux_ap, sflux, friction)
         self._last_settled = old.state is not None and np.array_equal(new.state, old.state)
@@ -1116,11 +954,12 @@ class Poromechanics:
         """
         asm, mesh, net, d = self.asm, self.fm.mesh, self.fm.network, self.dofs
         p = st.p
-        ex, fc = self.conductivities(st.flux_aperture) if self.n_ff else (np.zeros(0), np.zeros(0))
+        flux_ap = st.aperture if st.flux_aperture is None else st.flux_aperture      # set in __post_init__
+        ex, fc = self.conductivities(flux_ap) if self.n_ff else (np.zeros(0), np.zeros(0))
         F = asm.cell_fluxes(p[d.n:], p)
         if st.stabilisation_flux is not None:
-            F[self._stab_pos[:, 0]] += st.stabilisation_flux
-            F[self._stab_pos[:, 1]] -= st.stabilisation_flux
+            F[self.stab.positions[:, 0]] += st.stabilisation_flux
+            F[self.stab.positions[:, 1]] -= st.stabilisation_flux
         Ff = asm.fhfv_unit.scaled(fc).fluxes(p[d.frac], p[d.edge][asm.fcells.face_edges.values])
         face = np.full(mesh.n_faces, np.nan)
         ok = d.face >= 0

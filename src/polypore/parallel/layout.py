@@ -270,7 +270,7 @@ class DofLayout:
         """Sorted distributed indices of the unknowns ``serial`` (serial numbering) that this rank
         owns: the rows of one field (an index set of PCFIELDSPLIT)."""
         g = self.inv[np.asarray(serial, np.int64)]
-        return np.sort(g[(g >= self.start) & (g < self.end)])
+        return np.sort(g[(g >= self.start) & (g < self.end)])     # type: ignore[operator]  # numpy stubs: generic dtype
 
     def field_rows(self, serial: np.ndarray) -> np.ndarray:
         """Serial indices of :meth:`field` (same order): to pick this rank's rows of per-unknown

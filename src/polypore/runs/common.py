@@ -59,7 +59,7 @@ class RunClock:
         distributed run also ``ranks``, the same for every rank (a collective call: every rank
         makes it at the same point)."""
         out = summary_split(time.perf_counter() - self.wall, time.process_time() - self.cpu,
-                            backend=getattr(solver, "backend", None))
+                            backend=None if solver is None else solver.backend)
         out["peak_memory_mb"] = peak_memory_mb()
         ctx = context()
         if ctx is not None and ctx.size > 1:

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -27,29 +28,20 @@ from ..core import live
 from ..core.errors import InputError, RunError
 from ..io.atomic import atomic_write_text
 from ..io.legend import POROMECHANICS_ARRAYS, write_legend
-from ..io.monitor3d import StepRecorder, collect, from_run_directory, tangential
+from ..io.monitor3d import collect, from_run_directory, tangential
 from ..io.plots import monitor_plots, poro_plots, time_unit
 from ..io.plots3d import write_3d_plots
-from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
-from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu, write_pvd
-from ..models.contact import SLIP, STATE_NAMES
-from ..models.energy import check_energy
+from ..io.results import staged_run_directory, write_json
 from ..models.fracture_geometry import arc_length
-from ..models.mechanics import MechanicsState
 from ..setup.casefile import CaseFile, load_case
 from ..setup.flow import well_cells
 from ..setup.meshing import build_fractured_mesh
 from ..setup.poromechanics import monitor_points, poro_setup
 from .common import RunClock, corner_point_faults
 from .march import march
+from .recorder import OutputSeries, PoroRecorder
 
 log = logging.getLogger("polypore")
-# a step whose fracture conductivity grows more than this (aperture ×10 with the cubic law), on
-# faces carrying flow, is warned of: the fluxes lag one step (Poromechanics.conductivity_growth).
-# Growth does not measure the error: on the tilted grid of docs/fault_bounds.md 2e8 went with slip
-# 60 % above its Δt → 0 value, on C6 (coarse) 54 at 5-day steps with 3.5 % and 2e4 at 30-day
-# steps with 2.7 % at the end; the warning asks for the check that does (a shorter step)
-CONDUCTIVITY_GROWTH_WARN = 1e3
 
 
 # a face whose tangential jump since the start is above SLIPPED, at least BUBBLE_SHARE of it its
@@ -82,13 +74,40 @@ def bubble_slip(model, st, net) -> dict:
     return out
 
 
+@dataclass
+class CoupledRun:
+    """What the set-up phase of a poromechanics run makes, besides its initial state and recorder."""
+
+    case: CaseFile
+    fm: object                  # FracturedMesh
+    model: object               # Poromechanics
+    schedule: object            # TimeSchedule
+    solver_setup: object        # the mechanics set-up: ``choices`` and ``solver`` for summary.json
+    faults: dict | None         # summary.json's faults of a corner-point grid
+    points: dict                # {name: cell} of the monitor points
+
+
 def run_poromechanics(case: CaseFile, out: Path) -> dict:
+    """Run a poromechanics case and write its files into ``out``; return the summary: set-up
+    (:func:`set_up`), march (:class:`CoupledMarch`), write (:func:`write_results`)."""
     clock = RunClock()
+    run, state, recorder = set_up(case)
+    with staged_run_directory(out) as stage:
+        atomic_write_text(stage / "case.toml", case.to_toml())
+        series = OutputSeries(stage)
+        recorder.record(state)          # before the output: its VTU holds the onsets up to now
+        recorder.output(series, 0, state)
+        state = CoupledMarch(run.model, run.schedule, recorder, series).run(state)
+        summary = write_results(run, recorder, series, state, clock)
+    return summary
+
+
+def set_up(case: CaseFile) -> tuple[CoupledRun, object, PoroRecorder]:
+    """The mesh, model, schedule and initial state of a poromechanics case, and the run's recorder."""
     fm = build_fractured_mesh(case)
     model, fs, ms = poro_setup(case, fm)
-    mesh, net = fm.mesh, fm.network
+    mesh = fm.mesh
     faults = corner_point_faults(case, fm)
-    g = mesh.geometry
     schedule = fs.schedule
     live.update(steps=len(schedule.times()) - 1, unit="step")   # the live line's run estimate, from the start
     s_arc = arc_length(fm)
@@ -102,211 +121,135 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
             state = model.reference_state(fs.initial_pressure, t0=schedule.start)
         except RunError as exc:
             raise InputError("initial_state", str(exc)) from None
-        p_ref = ref.pressure(g.cell_centroid)                  # outputs: absolute pressure = p_h + p
+        p_ref = ref.pressure(mesh.geometry.cell_centroid)      # outputs: absolute pressure = p_h + p
     p0 = model.cell_pressure(state).copy()
     points = monitor_points(case, mesh)
-    recorder = StepRecorder(net.names, net.fracture, model.mech.face_area, case_wells(case, mesh), g.cell_volume)
-    q_start = model.jumps(state.u)
-    n_hat = model.mech.normal
-
-    def slip_since_start(st):
-        return tangential(model.jumps(st.u) - q_start, n_hat)
-
-    monitor = {"time": [], "points": {k: [] for k in points}, "fault_p": {k: [] for k in net.names},
-               "fault_slip": {k: [] for k in net.names}}
-    onset = {}
+    recorder = PoroRecorder(model, fm, s_arc, points, case_wells(case, mesh), p0, p_ref, state,
+                            schedule.max_conductivity_growth)
     log.info("initial state at t = %g s: %d open, %d stick, %d slip faces (%.2f s)", schedule.start,
              int(np.sum(state.state == 0)), int(np.sum(state.state == 1)), int(np.sum(state.state == 2)),
              time.perf_counter() - t0)
-    steps, energies, pvd, blocks, series, snapshots = [], [], [], [], [], []
-    warned = []                         # the step of the conductivity-growth warning (once per run)
+    return CoupledRun(case, fm, model, schedule, ms, faults, points), state, recorder
 
-    with staged_run_directory(out) as stage:
-        atomic_write_text(stage / "case.toml", case.to_toml())
 
-        def output(k_out: int, n: int, st):
-            fq = model.fracture_quantities(st)
-            p = model.cell_pressure(st)
-            eff, tot = model.stresses(st)
-            (eff, comps), (tot, _) = symmetric_tensor(eff), symmetric_tensor(tot)
-            write_bulk_vtu(stage / f"bulk_{k_out:04d}.vtu", mesh, cell_data={
-                "pressure": p + p_ref, "overpressure": p - p0, "displacement": model.mech.cell_displacement(
-                    _mstate(st)), "effective_stress": eff, "total_stress": tot},
-                point_data={"displacement": model.mech.node_displacement(_mstate(st))},  # for Warp By Vector
-                component_names={"effective_stress": comps, "total_stress": comps})
-            write_fracture_vtu(stage / f"fractures_{k_out:04d}.vtu", fm, cell_data={
-                "jump": fq["jump"], "jump_n": fq["jump_n"], "jump_t": fq["jump_t"], "lambda": st.lam,
-                "lambda_n": fq["lambda_n"], "lambda_t": fq["lambda_t"], "state": fq["state"].astype(np.int32),
-                "aperture": fq["aperture"], "p_f": fq["p_f"], **model.friction_fields(st),
-                # every step's onset (the recorder saw this time already): replots draw the same
-                "first_slip": recorder.onset.copy()})
-            pvd.extend([(st.time, f"bulk_{k_out:04d}.vtu", 0), (st.time, f"fractures_{k_out:04d}.vtu", 1)])
-            blocks.append(fracture_rows(n, st.time, net.names, net.fracture, g.face_centroid[net.faces], s_arc,
-                                        model.mech.face_area, fq["jump"], model.mech.normal, st.lam,
-                                        [STATE_NAMES[k] for k in fq["state"]], fq["aperture"], fq["p_f"]))
-            snapshots.append({"time": st.time, "overpressure": p - p0, "state": fq["state"].copy(),
-                              "lambda_n": fq["lambda_n"].copy(), "jump_t": fq["jump_t"].copy(),
-                              "aperture": fq["aperture"].copy(), "slip": slip_since_start(st)})
+class CoupledMarch:
+    """The march of a poromechanics run: the model's implicit-Euler steps over the schedule
+    (:func:`polypore.runs.march.march`), each step recorded and, at output times, written.
 
-        def record(st):
-            fq = model.fracture_quantities(st)
-            A = model.mech.face_area
-            row = {"time": st.time}
-            for i, name in enumerate(net.names):
-                sel = net.fracture == i
-                w = A[sel].sum()
-                row[name] = (float((A[sel] * fq["aperture"][sel]).sum() / w),
-                             float((A[sel] * fq["p_f"][sel]).sum() / w))
-            series.append(row)
-            monitor["time"].append(st.time)
-            pc = model.cell_pressure(st)
-            for k, cell in points.items():
-                monitor["points"][k].append(float(pc[cell] - p0[cell]))
-            recorder.add(st.time, st.state, pc - p0, fq["p_f"])
-            slip = slip_since_start(st)
-            for i, name in enumerate(net.names):
-                sel = net.fracture == i
-                monitor["fault_p"][name].append(float(fq["p_f"][sel].max()) if sel.any() else 0.0)
-                monitor["fault_slip"][name].append(float(slip[sel].max()) if sel.any() else 0.0)
-            if not onset and np.any(st.state == SLIP):
-                x = g.face_centroid[net.faces][st.state == SLIP]
-                onset.update({"time": st.time, "previous_time": monitor["time"][-2] if len(monitor["time"]) > 1
-                              else st.time, "faces": int(np.sum(st.state == SLIP)),
-                              "first_slipping_faces": np.round(x, 3).tolist()[:20]})
+    model : Poromechanics; schedule : TimeSchedule; recorder : PoroRecorder; series : OutputSeries.
+    """
 
-        record(state)                   # before the output: its VTU holds the onsets up to now
-        output(0, 0, state)
-        k_out = [1]
+    def __init__(self, model, schedule, recorder: PoroRecorder, series: OutputSeries):
+        self.model, self.schedule, self.recorder, self.series = model, schedule, recorder, series
+        self.limit = schedule.max_conductivity_growth
+        self.n_steps = len(schedule.times()) - 1
 
-        def step(st, ta, tb):
-            new, info = model.step(st, tb - ta, tb)
-            return new, {"info": info, "dt": tb - ta}
-
-        limit = schedule.max_conductivity_growth
-
-        def accept(sub):
-            """None, or why a converged step is redone at half the size (time.max_conductivity_growth)."""
-            g = sub["info"].conductivity_growth
-            return None if limit is None or g <= limit else f"a fracture conductivity grew {g:.2g}-fold, above {limit:g}"
-
-        def on_step(rec, st, is_out):
-            info = rec.info["info"]
-            subs = [sub["info"] for sub in rec.substeps]
-            growth = max(i.conductivity_growth for i in subs)
-            row = {"time": rec.time, "dt": rec.dt, "newton_iterations": sum(i.iterations for i in subs),
-                   "residual": info.residual, "open": info.open, "stick": info.stick, "slip": info.slip,
-                   "seconds": rec.seconds, "cuts": rec.cuts, "history": info.history}
-            if len(subs) > 1 or rec.rejected:
-                row["substeps"] = {"accepted": len(subs), "rejected": rec.rejected, "kept_above_limit": rec.forced,
-                                   "smallest_dt": min(sub["dt"] for sub in rec.substeps)}
-            lin_its = [k for i in subs for k in (i.linear_iterations or [])]
-            if lin_its:
-                row["linear_iterations"] = lin_its
-            if rec.failed:
-                # attempts given up and cut: not part of the accepted step's counts, but of its cost
-                row["failed_attempts"] = rec.failed
-            row["conductivity_growth"] = growth
-            if growth > CONDUCTIVITY_GROWTH_WARN and not warned:
-                warned.append(rec.index)
-                log.warning("step %d (t = %g s): the fracture conductivity grew up to %.1e-fold on faces that carry "
-                            "flow; the step's fluxes use the previous step's conductivity (scheme.md §6), so slip and "
-                            "fault pressure after it may depend on time.step (here Δt = %g s): compare with a "
-                            "shorter step, or set time.max_conductivity_growth (docs/fault_bounds.md, \"The time "
-                            "step\"; summary.json steps[].conductivity_growth)",
-                            rec.index, rec.time, growth, rec.dt)
-            if info.energy is not None:
-                row["energy"] = info.energy.summary()           # the last sub-step's; all are checked
-                energies.extend(i.energy for i in subs if i.energy is not None)
-            steps.append(row)
-            lin = f", {sum(lin_its)} GMRES iterations" if lin_its else ""
-            sub = f" in {len(subs)} sub-steps" if len(subs) > 1 else ""
-            if rec.failed:
-                sub += f" (+{sum(f.get('newton_iterations', 0) for f in rec.failed)} in {len(rec.failed)} failed attempt" \
-                       f"{'s' if len(rec.failed) > 1 else ''})"
-            log.info("step %d/%d: t = %g s, %d Newton iterations%s (residual %.1e)%s, open %d, stick %d, slip %d, "
-                     "%.2f s (%s)", rec.index, len(schedule.times()) - 1, rec.time, row["newton_iterations"], sub,
-                     info.residual, lin, info.open, info.stick, info.slip, rec.seconds, rec.progress)
-            if rec.index == len(schedule.times()) - 1:
-                # no solve follows: the solver's matrices and set-ups (a third of a rank's memory
-                # at C5 127k) go before the last outputs and the plots
-                model.release_solver()
-            record(st)
-            if is_out:
-                output(k_out[0], rec.index, st)
-                k_out[0] += 1
-
+    def run(self, state):
+        """March from ``state``; return the final state."""
         try:
-            state, _ = march(schedule, state, step, on_step, accept=accept if limit is not None else None,
-                             max_rejections=schedule.growth_cuts)
+            state, _ = march(self.schedule, state, self.step, self.on_step,
+                             accept=self.accept if self.limit is not None else None,
+                             max_rejections=self.schedule.growth_cuts)
         except RunError as exc:
             # a Newton iteration that found no equilibrium with a softening friction law: say what it likely is
-            hint = model.mech.law.friction_law.instability_hint
+            hint = self.model.mech.law.friction_law.instability_hint
             if hint and "Newton" in str(exc):
                 raise RunError(f"{exc}. {hint}") from None
             raise
-        bubble = bubble_slip(model, state, net)
-        if bubble["faces"]:
-            w = bubble["largest"]
-            log.warning("%d fault face(s) slip mostly through their face bubble, a cell-local mode rather than a "
-                        "motion of the fault's sides (largest: %s face %d, %.3g m², slip %.3g mm of which %.3g mm "
-                        "bubble); such faces are slivers or faces of thin cells: their slip is an artefact "
-                        "(summary.json slip_bubble; docs/fault_bounds.md, \"a sliver face that runs away\")",
-                        bubble["faces"], w["fracture"], w["face"], w["area_m2"], 1e3 * w["slip_m"], 1e3 * w["bubble_m"])
-        violations = check_energy(energies)
-        for v in violations:
-            log.warning("energy estimate violated: %s", v)
-        write_pvd(stage / "solution.pvd", pvd)
-        write_fractures_csv(stage / "fractures.csv", blocks)
-        t_plots = time.perf_counter()
-        if mesh.dim == 2:
-            tf, tname = time_unit(schedule.end)
-            _plot_safely("overpressure and contact", lambda: poro_plots(stage, case.name, mesh, net, s_arc, snapshots,
-                                                                        series, schedule.end))
-            _plot_safely("monitor", lambda: monitor_plots(stage, case.name, net, s_arc, monitor, snapshots,
-                                                          onset.get("time"), tf, f"t ({tname})"))
-        else:
-            # the face states and onsets are the recorder's (those of summary.json's series)
-            last = {"time": state.time, "slip": slip_since_start(state)}
-            op = model.cell_pressure(state) - p0
-            _plot_safely("3D monitor", lambda: write_3d_plots(stage, collect(
-                case.name, schedule.end, fm, model.mech.face_area, recorder, monitor, last, points, op)))
-        t_plots = time.perf_counter() - t_plots
-        summary = {
-            "case": case.name, "version": __version__, "model": "poromechanics",
-            "mesh": {"dim": mesh.dim, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
-                     "fracture_faces": net.n_faces, "multiplier_patches": model.mech.patches.summary(),
-                     "unknowns": int(model.mech.free.size + model.mech.n_c * model.dim + model.flow_free.size),
-                     "blocks": model.block_counts()},
-            **({"faults": faults} if faults is not None else {}),
-            "choices": ms.choices,
-            "steps": steps,
-            "energy_check": {"violations": violations, "steps_checked": len(energies)},
-            "conductivity_growth": {"max": max((r["conductivity_growth"] for r in steps), default=1.0),
-                                    "warned_at_step": warned[0] if warned else None,
-                                    "warn_above": CONDUCTIVITY_GROWTH_WARN, "step_limit": limit,
-                                    "substeps": sum(r.get("substeps", {}).get("accepted", 1) for r in steps),
-                                    "rejected": sum(r.get("substeps", {}).get("rejected", 0) for r in steps)},
-            "fracture_means": series,
-            "slip_onset": onset or None,
-            "slip_bubble": bubble,
-            "monitor": {"time": monitor["time"], "overpressure_at_points": monitor["points"],
-                        "max_fracture_pressure": monitor["fault_p"], "max_slip": monitor["fault_slip"],
-                        "points": {k: np.round(g.cell_centroid[c], 6).tolist() for k, c in points.items()},
-                        **recorder.summary(g.cell_centroid)},
-            # the time split covers the whole run, the initial equilibrium included; the plots are
-            # part of "other"
-            "totals": {**clock.totals(ms.solver), "seconds_plots": t_plots,
-                       "newton_iterations": int(sum(s["newton_iterations"] for s in steps)),
-                       "newton_iterations_failed": int(sum(f.get("newton_iterations", 0) for s in steps
-                                                           for f in s.get("failed_attempts", ()))),
-                       "linear_iterations_failed": int(sum(sum(f.get("linear_iterations", ())) for s in steps
-                                                           for f in s.get("failed_attempts", ())))},
-        }
-        # README.txt and summary's "legend"; the friction law's state arrays with a law that has one
-        bulk_arrays, fracture_arrays = POROMECHANICS_ARRAYS
-        write_legend(stage, summary, bulk_arrays, fracture_arrays + tuple(model.friction_fields(state)))
-        write_json(stage / "summary.json", summary)
+        return state
+
+    def step(self, st, ta, tb):
+        new, info = self.model.step(st, tb - ta, tb)
+        return new, {"info": info, "dt": tb - ta}
+
+    def accept(self, sub):
+        """None, or why a converged step is redone at half the size (time.max_conductivity_growth)."""
+        g, limit = sub["info"].conductivity_growth, self.limit
+        return None if limit is None or g <= limit else f"a fracture conductivity grew {g:.2g}-fold, above {limit:g}"
+
+    def on_step(self, rec, st, is_out):
+        """After a schedule step: record it, log it, write its outputs at an output time."""
+        row = self.recorder.step_row(rec)
+        _log_step(rec, row, self.n_steps)
+        if rec.index == self.n_steps:
+            # no solve follows: the solver's matrices and set-ups (a third of a rank's memory
+            # at C5 127k) go before the last outputs and the plots
+            self.model.release_solver()
+        self.recorder.record(st)
+        if is_out:
+            self.recorder.output(self.series, rec.index, st)
+
+
+def _log_step(rec, row: dict, n_steps: int) -> None:
+    """The progress line of a schedule step (``row``: its summary.json row)."""
+    info = rec.info["info"]
+    n_sub = len(rec.substeps)
+    lin = f", {sum(row['linear_iterations'])} GMRES iterations" if "linear_iterations" in row else ""
+    sub = f" in {n_sub} sub-steps" if n_sub > 1 else ""
+    if rec.failed:
+        sub += f" (+{sum(f.get('newton_iterations', 0) for f in rec.failed)} in {len(rec.failed)} failed attempt" \
+               f"{'s' if len(rec.failed) > 1 else ''})"
+    log.info("step %d/%d: t = %g s, %d Newton iterations%s (residual %.1e)%s, open %d, stick %d, slip %d, "
+             "%.2f s (%s)", rec.index, n_steps, rec.time, row["newton_iterations"], sub,
+             info.residual, lin, info.open, info.stick, info.slip, rec.seconds, rec.progress)
+
+
+def write_results(run: CoupledRun, recorder: PoroRecorder, series: OutputSeries, state, clock: RunClock) -> dict:
+    """The write phase: solution.pvd, fractures.csv, the plots, README.txt and summary.json (returned)
+    into the series' folder, after the checks of the final state (bubble slip, energy estimate)."""
+    model, mesh, net = run.model, run.fm.mesh, run.fm.network
+    bubble = bubble_slip(model, state, net)
+    if bubble["faces"]:
+        w = bubble["largest"]
+        log.warning("%d fault face(s) slip mostly through their face bubble, a cell-local mode rather than a "
+                    "motion of the fault's sides (largest: %s face %d, %.3g m², slip %.3g mm of which %.3g mm "
+                    "bubble); such faces are slivers or faces of thin cells: their slip is an artefact "
+                    "(summary.json slip_bubble; docs/fault_bounds.md, \"a sliver face that runs away\")",
+                    bubble["faces"], w["fracture"], w["face"], w["area_m2"], 1e3 * w["slip_m"], 1e3 * w["bubble_m"])
+    recorder.check_energy()
+    series.write()
+    t_plots = time.perf_counter()
+    _plots(run, recorder, series.folder, state)
+    t_plots = time.perf_counter() - t_plots
+    summary = {
+        "case": run.case.name, "version": __version__, "model": "poromechanics",
+        "mesh": {"dim": mesh.dim, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
+                 "fracture_faces": net.n_faces, "multiplier_patches": model.mech.patches.summary(),
+                 "unknowns": int(model.mech.free.size + model.mech.n_c * model.dim + model.flow_free.size),
+                 "blocks": model.block_counts()},
+        **({"faults": run.faults} if run.faults is not None else {}),
+        "choices": run.solver_setup.choices,
+        **recorder.summary(bubble),
+        # the time split covers the whole run, the initial equilibrium included; the plots are
+        # part of "other"
+        "totals": {**clock.totals(run.solver_setup.solver), "seconds_plots": t_plots, **recorder.totals()},
+    }
+    # README.txt and summary's "legend"; the friction law's state arrays with a law that has one
+    bulk_arrays, fracture_arrays = POROMECHANICS_ARRAYS
+    write_legend(series.folder, summary, bulk_arrays, fracture_arrays + tuple(model.friction_fields(state)))
+    write_json(series.folder / "summary.json", summary)
     return summary
+
+
+def _plots(run: CoupledRun, recorder: PoroRecorder, stage: Path, state) -> None:
+    """The monitor plots of a finished run: 2D overpressure, contact and monitor plots, or the 3D
+    monitor plots (:mod:`polypore.io.plots3d`); a plot that fails is a warning."""
+    case, fm, model, end = run.case, run.fm, run.model, run.schedule.end
+    mesh, net, s_arc = fm.mesh, fm.network, recorder.s_arc
+    if mesh.dim == 2:
+        tf, tname = time_unit(end)
+        _plot_safely("overpressure and contact", lambda: poro_plots(stage, case.name, mesh, net, s_arc,
+                                                                    recorder.snapshots, recorder.series, end))
+        _plot_safely("monitor", lambda: monitor_plots(stage, case.name, net, s_arc, recorder.monitor,
+                                                      recorder.snapshots, recorder.onset.get("time"), tf,
+                                                      f"t ({tname})"))
+    else:
+        # the face states and onsets are the recorder's (those of summary.json's series)
+        last = {"time": state.time, "slip": recorder.slip_since_start(state)}
+        op = model.cell_pressure(state) - recorder.p0
+        _plot_safely("3D monitor", lambda: write_3d_plots(stage, collect(
+            case.name, end, fm, model.mech.face_area, recorder.fault_monitor, recorder.monitor, last, run.points,
+            op)))
 
 
 def case_wells(case: CaseFile, mesh) -> dict:
@@ -349,8 +292,3 @@ def _plot_safely(what: str, draw) -> None:
         draw()
     except Exception as exc:
         log.warning("%s plots not written: %s: %s", what, type(exc).__name__, exc)
-
-
-def _mstate(st):
-    return MechanicsState(st.u, st.lam, st.state, st.time)
-

@@ -24,14 +24,15 @@ from ..cases.flow_exact import flow_errors, slot_values
 from ..io.atomic import atomic_write_text
 from ..io.legend import write_legend
 from ..io.progress import Progress
-from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
-from ..io.vtu import write_bulk_vtu, write_fracture_vtu, write_pvd
+from ..io.results import fracture_rows, staged_run_directory, write_json
+from ..io.vtu import write_bulk_vtu, write_fracture_vtu
 from ..mesh.fractures import BOUNDARY
 from ..models.fracture_geometry import arc_length
 from ..setup.casefile import CaseFile
 from ..setup.flow import FlowSetup, flow_setup
 from ..setup.meshing import build_fractured_mesh
 from .common import RunClock, corner_point_faults
+from .recorder import OutputSeries
 
 log = logging.getLogger("polypore")
 
@@ -108,7 +109,9 @@ def _darcy_velocity(model, sol, slot) -> np.ndarray:
     return -np.einsum("kij,kj->ki", model.permeability, gK) / model.viscosity
 
 
-def _write_state(stage: Path, k: int, model, setup: FlowSetup, sol, pvd: list):
+def _output(series: OutputSeries, step: int, model, setup: FlowSetup, sol, s) -> None:
+    """Write the solution ``sol`` of schedule step ``step`` as the next output of ``series``: bulk
+    and fracture VTU files, fractures.csv rows (``s``: (n_ff,) arc length, m)."""
     mesh, net = model.mesh, model.network
     g = mesh.geometry
     cell = {"pressure": sol.cell, "darcy_velocity": _darcy_velocity(model, sol, slot_values(model, sol))}
@@ -116,12 +119,13 @@ def _write_state(stage: Path, k: int, model, setup: FlowSetup, sol, pvd: list):
         c = g.cell_centroid
         pe = setup.exact.p(c[:, 0], c[:, 1], c[:, 2] if mesh.dim == 3 else 0.0)
         cell.update(pressure_exact=pe, pressure_error=sol.cell - pe)
-    write_bulk_vtu(stage / f"bulk_{k:04d}.vtu", mesh, cell_data=cell)
+    bulk, fractures = series.files()
+    write_bulk_vtu(bulk, mesh, cell_data=cell)
     area = g.face_area[net.faces]
-    write_fracture_vtu(stage / f"fractures_{k:04d}.vtu", model.fmesh, cell_data={
+    write_fracture_vtu(fractures, model.fmesh, cell_data={
         "p_f": sol.fracture, "trace_plus": sol.trace[:, 0], "trace_minus": sol.trace[:, 1],
         "aperture": sol.aperture, "exchange": sol.exchange.sum(axis=1) / area})
-    pvd += [(sol.time, f"bulk_{k:04d}.vtu", 0), (sol.time, f"fractures_{k:04d}.vtu", 1)]
+    series.add(sol.time, _csv_block(step, model, sol, s))
 
 
 def _csv_block(step: int, model, sol, s) -> dict:
@@ -138,7 +142,24 @@ def _csv_block(step: int, model, sol, s) -> dict:
 
 
 def _plots_2d(stage: Path, case: CaseFile, model, setup: FlowSetup, sol, s):
-    from ..io.plots import MAX_COLUMNS, _plt, format_time, save, value_unit
+    """pressure_map.png and fracture_pressure.png of a 2D run's last solution ``sol`` (``s``: (n_ff,)
+    arc length, m)."""
+    from ..io.plots import format_time, value_unit
+
+    t_end = None if setup.steady else float(setup.schedule.times()[-1])
+    when = "" if t_end is None else f", t = {format_time(sol.time, t_end)}"     # a steady run has no time
+    fp, up = value_unit("Pa", float(np.abs(sol.cell).max()) if sol.cell.size else 0.0)
+    _pressure_map(stage / "pressure_map.png", f"{case.name}: matrix pressure{when}", model, sol, fp, up)
+    net = model.network
+    if len(net.names) == 0 or net.n_faces == 0:
+        return
+    _fracture_pressure(stage / "fracture_pressure.png", f"{case.name}: fracture pressure and matrix traces{when}",
+                       model, setup, sol, s, fp, up)
+
+
+def _pressure_map(path: Path, title: str, model, sol, fp: float, up: str):
+    """The matrix pressure (Pa / ``fp``, in unit ``up``) with the fractures drawn."""
+    from ..io.plots import _plt, save
     from ..io.vtu import bulk_cells
 
     plt = _plt()
@@ -150,9 +171,6 @@ def _plots_2d(stage: Path, case: CaseFile, model, setup: FlowSetup, sol, s):
     polys = [c["points"][c["connectivity"][a:b], :2] for a, b in zip(starts, c["offsets"])]
     lo, hi = mesh.bounding_box
     fig, ax = plt.subplots(figsize=(8, 8 * (hi[1] - lo[1]) / (hi[0] - lo[0]) + 0.8))
-    t_end = None if setup.steady else float(setup.schedule.times()[-1])
-    when = "" if t_end is None else f", t = {format_time(sol.time, t_end)}"     # a steady run has no time
-    fp, up = value_unit("Pa", float(np.abs(sol.cell).max()) if sol.cell.size else 0.0)
     pc = PolyCollection(polys, array=sol.cell / fp, cmap="viridis", edgecolors="face", linewidths=0.1)
     ax.add_collection(pc)
     seg = mesh.nodes[mesh.face_nodes.values.reshape(-1, 2)[net.faces]]
@@ -164,12 +182,18 @@ def _plots_2d(stage: Path, case: CaseFile, model, setup: FlowSetup, sol, s):
     fig.colorbar(pc, ax=ax, label=f"matrix pressure p_m ({up})", shrink=0.8)
     ax.set_xlabel("x (m)")
     ax.set_ylabel("y (m)")
-    ax.set_title(f"{case.name}: matrix pressure{when}", fontsize=10)
-    save(fig, stage / "pressure_map.png")
-    # p_f and the two traces along each fracture
+    ax.set_title(title, fontsize=10)
+    save(fig, path)
+
+
+def _fracture_pressure(path: Path, title: str, model, setup: FlowSetup, sol, s, fp: float, up: str):
+    """p_f and the two matrix traces along each fracture (Pa / ``fp``, in unit ``up``) against the
+    arc length ``s`` (m), with the exact p_f of a case that has one."""
+    from ..io.plots import MAX_COLUMNS, _plt, save
+
+    plt = _plt()
+    mesh, net = model.mesh, model.network
     nf = len(net.names)
-    if nf == 0 or net.n_faces == 0:
-        return
     ncol = min(nf, MAX_COLUMNS)
     nrow = -(-nf // ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(3.6 * ncol + 1, 3.0 * nrow + 0.6), squeeze=False,
@@ -196,58 +220,31 @@ def _plots_2d(stage: Path, case: CaseFile, model, setup: FlowSetup, sol, s):
             ax.legend(fontsize=7)
         ax.tick_params(labelsize=7)
         ax.grid(alpha=0.3)
-    fig.suptitle(f"{case.name}: fracture pressure and matrix traces{when}", fontsize=10)
-    save(fig, stage / "fracture_pressure.png")
+    fig.suptitle(title, fontsize=10)
+    save(fig, path)
 
 
 # -- entry points --------------------------------------------------------------------------------
 def run_flow(case: CaseFile, out: Path) -> dict:
-    """Run a flow case (steady or transient) and write its files into ``out``; return the summary."""
+    """Run a flow case (steady or transient) and write its files into ``out``; return the summary:
+    set-up, solve (:func:`_solve_steady`) or march (:func:`_march_transient`), write."""
     clock = RunClock()
     fm, setup, model, stage_seconds = _prepare(case)
-    mesh, net = fm.mesh, fm.network
+    mesh = fm.mesh
     faults = corner_point_faults(case, fm)
     s = arc_length(fm)
-    steps, blocks, pvd = [], [], []
     with staged_run_directory(out) as stage:
         atomic_write_text(stage / "case.toml", case.to_toml())
-        t0 = time.perf_counter()
-        if setup.steady:
-            sol = model.solve_steady()
-            bal = balances(model, sol)
-            steps.append({"time": sol.time, "seconds": time.perf_counter() - t0,
-                          "mass_balance": bal["mass_balance"]["residual"], "timings": sol.timings})
-            log.info("steady solve: %d unknowns in %.2f s, mass balance %.2e m³/s", flow_unknowns(model),
-                     steps[-1]["seconds"], bal["mass_balance"]["residual"])
-            _write_state(stage, 0, model, setup, sol, pvd)
-            blocks.append(_csv_block(0, model, sol, s))
-        else:
-            times = setup.schedule.times()
-            sol = model.initial_state(setup.initial_pressure, times[0])
-            _write_state(stage, 0, model, setup, sol, pvd)
-            blocks.append(_csv_block(0, model, sol, s))
-            k_out = 1
-            with Progress(times.size - 1, "steps") as bar:
-                for n in range(1, times.size):
-                    t0 = time.perf_counter()
-                    old, sol = sol, model.step(sol, times[n] - times[n - 1])
-                    bal = balances(model, sol, old, times[n] - times[n - 1])
-                    steps.append({"time": sol.time, "seconds": time.perf_counter() - t0,
-                                  "mass_balance": bal["mass_balance"]["residual"]})
-                    log.info("step %d/%d: t = %g s, %.2f s, mass balance %.2e m³/s (%s)", n, times.size - 1,
-                             sol.time, steps[-1]["seconds"], bal["mass_balance"]["residual"], bar.advance())
-                    if setup.schedule.is_output(n, float(times[n])):
-                        _write_state(stage, k_out, model, setup, sol, pvd)
-                        blocks.append(_csv_block(n, model, sol, s))
-                        k_out += 1
-        write_pvd(stage / "solution.pvd", pvd)
-        write_fractures_csv(stage / "fractures.csv", blocks)
+        series = OutputSeries(stage)
+        solve = _solve_steady if setup.steady else _march_transient
+        sol, bal, steps = solve(model, setup, series, s)
+        series.write()
         if mesh.dim == 2:
             _plots_2d(stage, case, model, setup, sol, s)
         summary = {
             "case": case.name, "version": __version__, "model": "flow",
             "mesh": {"dim": mesh.dim, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
-                     "fracture_faces": net.n_faces, "unknowns": flow_unknowns(model),
+                     "fracture_faces": fm.network.n_faces, "unknowns": flow_unknowns(model),
                      "global_unknowns": int(model.assembler.dofs.n),
                      "h_max": float(mesh.geometry.cell_diameter.max())},
             **({"faults": faults} if faults is not None else {}),
@@ -263,6 +260,41 @@ def run_flow(case: CaseFile, out: Path) -> dict:
             fractures=("p_f", "trace_plus", "trace_minus", "aperture", "exchange"))
         write_json(stage / "summary.json", summary)
     return summary
+
+
+def _solve_steady(model, setup: FlowSetup, series: OutputSeries, s):
+    """The steady solve, written as output 0 of ``series``; return (solution, its balances,
+    summary.json's steps)."""
+    t0 = time.perf_counter()
+    sol = model.solve_steady()
+    bal = balances(model, sol)
+    steps = [{"time": sol.time, "seconds": time.perf_counter() - t0,
+              "mass_balance": bal["mass_balance"]["residual"], "timings": sol.timings}]
+    log.info("steady solve: %d unknowns in %.2f s, mass balance %.2e m³/s", flow_unknowns(model),
+             steps[-1]["seconds"], bal["mass_balance"]["residual"])
+    _output(series, 0, model, setup, sol, s)
+    return sol, bal, steps
+
+
+def _march_transient(model, setup: FlowSetup, series: OutputSeries, s):
+    """Implicit-Euler steps over the schedule from the initial state (output 0), outputs at the
+    schedule's output times; return (last solution, its balances, summary.json's steps)."""
+    times = setup.schedule.times()
+    sol = model.initial_state(setup.initial_pressure, times[0])
+    _output(series, 0, model, setup, sol, s)
+    steps = []
+    with Progress(times.size - 1, "steps") as bar:
+        for n in range(1, times.size):
+            t0 = time.perf_counter()
+            old, sol = sol, model.step(sol, times[n] - times[n - 1])
+            bal = balances(model, sol, old, times[n] - times[n - 1])
+            steps.append({"time": sol.time, "seconds": time.perf_counter() - t0,
+                          "mass_balance": bal["mass_balance"]["residual"]})
+            log.info("step %d/%d: t = %g s, %.2f s, mass balance %.2e m³/s (%s)", n, times.size - 1,
+                     sol.time, steps[-1]["seconds"], bal["mass_balance"]["residual"], bar.advance())
+            if setup.schedule.is_output(n, float(times[n])):
+                _output(series, n, model, setup, sol, s)
+    return sol, bal, steps
 
 
 def flow_convergence_point(case: CaseFile) -> dict:

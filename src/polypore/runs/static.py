@@ -15,13 +15,12 @@ import numpy as np
 
 from .. import __version__
 from ..io.plots import fracture_profiles, state_map
-from ..io.results import fracture_rows, staged_run_directory, write_fractures_csv, write_json
-from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu, write_pvd
+from ..io.results import fracture_rows, staged_run_directory, write_json
+from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu
 from ..io.atomic import atomic_write_text
 from ..io.legend import write_legend
 from ..models.contact import STATE_NAMES
 from ..models.fracture_geometry import arc_length
-from ..models.mechanics import ContactMechanics
 from ..cases.exact import PiecewiseSolution, SingleCrack, piecewise_errors
 from ..cases.penny_exact import PennyCrack
 from ..cases.reference import ReferenceSlip
@@ -29,6 +28,7 @@ from ..setup.casefile import CaseFile
 from ..setup.mechanics import mechanics_setup
 from ..setup.meshing import build_fractured_mesh
 from .common import RunClock, corner_point_faults, unknowns
+from .recorder import OutputSeries
 
 log = logging.getLogger("polypore")
 
@@ -39,7 +39,7 @@ def solve_static(case: CaseFile):
     fm = build_fractured_mesh(case)
     t1 = time.perf_counter()
     setup = mechanics_setup(case, fm)
-    problem = ContactMechanics(fm, setup.data, setup.solver, setup.newton)
+    problem = setup.problem(fm)         # errors name the case-file keys (setup/translate.py)
     t2 = time.perf_counter()
     st = problem.solve()
     problem.release_solver()            # no solve follows (ContactMechanics.release_solver)
@@ -66,28 +66,12 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
     net = fm.network
     g = mesh.geometry
     d = mesh.dim
-    q = problem.jumps(st)
-    names = [STATE_NAMES[k] for k in st.state]
     s = arc_length(fm)
     with staged_run_directory(out) as stage:
         atomic_write_text(stage / "case.toml", case.to_toml())
-        stress = problem.stress(st)
-        sv, comps = symmetric_tensor(stress)
-        write_bulk_vtu(stage / "bulk_0000.vtu", mesh, cell_data={
-            "displacement": problem.cell_displacement(st), "stress": sv,
-            "von_mises": _von_mises(stress)}, point_data={"displacement": problem.node_displacement(st)},
-            component_names={"stress": comps})
-        qn = np.einsum("fi,fi->f", q, problem.normal)
-        ln = np.einsum("fi,fi->f", st.lam, problem.normal)
-        write_fracture_vtu(stage / "fractures_0000.vtu", fm, cell_data={
-            "jump": q, "jump_n": qn, "jump_t": np.linalg.norm(q - qn[:, None] * problem.normal, axis=1),
-            "lambda": st.lam, "lambda_n": ln,
-            "lambda_t": np.linalg.norm(st.lam - ln[:, None] * problem.normal, axis=1),
-            "state": st.state.astype(np.int32)})
-        write_pvd(stage / "solution.pvd", [(0.0, "bulk_0000.vtu", 0), (0.0, "fractures_0000.vtu", 1)])
-        cols = fracture_rows(0, 0.0, net.names, net.fracture, g.face_centroid[net.faces], s, problem.face_area, q,
-                             problem.normal, st.lam, names)
-        write_fractures_csv(stage / "fractures.csv", [cols])
+        series = OutputSeries(stage)
+        cols = _output(series, problem, st, s)
+        series.write()
         if plots and d == 2 and net.n_faces:
             _plots_2d(stage, case, problem, st, cols, setup, s)
         summary = {
@@ -108,6 +92,32 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
                      fractures=("jump", "jump_n", "jump_t", "lambda", "lambda_n", "lambda_t", "state"))
         write_json(stage / "summary.json", summary)
     return summary
+
+
+def _output(series: OutputSeries, problem, st, s) -> dict:
+    """Write the solution ``st`` as the output at t = 0 of ``series`` (bulk and fracture VTU files,
+    fractures.csv rows; ``s``: (n_ff,) arc length, m); return its fractures.csv columns."""
+    fm = problem.fm
+    net, g = fm.network, fm.mesh.geometry
+    q = problem.jumps(st)
+    stress = problem.stress(st)
+    sv, comps = symmetric_tensor(stress)
+    bulk, fractures = series.files()
+    write_bulk_vtu(bulk, fm.mesh, cell_data={
+        "displacement": problem.cell_displacement(st), "stress": sv,
+        "von_mises": _von_mises(stress)}, point_data={"displacement": problem.node_displacement(st)},
+        component_names={"stress": comps})
+    qn = np.einsum("fi,fi->f", q, problem.normal)
+    ln = np.einsum("fi,fi->f", st.lam, problem.normal)
+    write_fracture_vtu(fractures, fm, cell_data={
+        "jump": q, "jump_n": qn, "jump_t": np.linalg.norm(q - qn[:, None] * problem.normal, axis=1),
+        "lambda": st.lam, "lambda_n": ln,
+        "lambda_t": np.linalg.norm(st.lam - ln[:, None] * problem.normal, axis=1),
+        "state": st.state.astype(np.int32)})
+    cols = fracture_rows(0, 0.0, net.names, net.fracture, g.face_centroid[net.faces], s, problem.face_area, q,
+                         problem.normal, st.lam, [STATE_NAMES[k] for k in st.state])
+    series.add(0.0, cols)
+    return cols
 
 
 def _von_mises(S):

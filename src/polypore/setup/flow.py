@@ -40,11 +40,13 @@ from ..core.expressions import parse
 from ..mesh import FracturedMesh
 from ..models.flow import FlowData, FlowModel, Flux, NO_FLOW, Pressure, evaluate, permeability_tensor
 from ..models.fracture_geometry import tip_distance
-from ..solvers.linear import LinearSolver
+from ..solvers.factory import SolverChoice
+from .solver import solver_choice
 from .casefile import CaseFile
 from .schedule import TimeSchedule, parse_schedule
 from .schema.case import Solver
 from .schema.flow import GRDECL
+from .translate import FLOW, case_keys
 
 FRACTURE_VARS = ("D", "L")
 log = logging.getLogger("polypore")
@@ -60,7 +62,7 @@ class FlowSetup:
     fracture_boundary: dict
     cell_source: object
     fracture_source: object
-    solver: LinearSolver
+    solver: SolverChoice
     schedule: TimeSchedule | None = None
     initial_pressure: object = None
     alpha: float | None = None
@@ -74,6 +76,7 @@ class FlowSetup:
     def steady(self) -> bool:
         return self.schedule is None
 
+    @case_keys(FLOW)
     def model(self) -> FlowModel:
         return FlowModel(self.fm, self.data, self.boundary, fracture_boundary=self.fracture_boundary,
                          cell_source=self.cell_source, fracture_source=self.fracture_source, alpha=self.alpha,
@@ -237,6 +240,7 @@ def fracture_variables(fm: FracturedMesh) -> dict:
 
 
 # -- main entry ----------------------------------------------------------------------------------
+@case_keys(FLOW)
 def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
     """The flow tables of ``case`` as a flow model's data for the mesh ``fm`` (InputError naming the field)."""
     spec = case.spec
@@ -330,7 +334,7 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
         if fracture_source == "exact":
             fracture_source = exact.h_f(xf, on1)
     return FlowSetup(fm, data, boundary, fracture_boundary, cell_source, fracture_source,
-                     LinearSolver(s.linear, symmetric=True, rtol=s.linear_tolerance, **s.backend_options()), schedule,
+                     solver_choice(s.linear, symmetric=True, rtol=s.linear_tolerance, **s.backend_options()), schedule,
                      initial, sec.alpha,
                      sec.fracture_alpha, exact, on1,
                      {"fracture_variables": fvars, "tan_psi": float(np.tan(np.radians(sec.dilatancy_angle))),

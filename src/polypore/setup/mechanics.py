@@ -49,12 +49,14 @@ from ..models.materials import check_elastic, lame
 from ..models.friction import LAW_KEYS
 from ..models.mechanics import ContactSpec, DisplacementBC, MechanicsData, TractionBC
 from ..solvers import linear as _linear
-from ..solvers.linear import LinearSolver
+from ..solvers.factory import SolverChoice
+from .solver import solver_choice
 from ..solvers.newton import NewtonOptions
 from .casefile import CaseFile
 from .schema.case import Solver
 from .schema.geometry import CORNERPOINT
 from .schema.mechanics import ORDER_AUTO, Contact, Mechanics
+from .translate import MECHANICS, case_keys
 
 log = logging.getLogger("polypore")
 
@@ -62,12 +64,20 @@ log = logging.getLogger("polypore")
 @dataclass
 class MechanicsSetup:
     data: MechanicsData
-    solver: LinearSolver
+    solver: SolverChoice
     newton: NewtonOptions
     exact: object | None
     E: np.ndarray
     nu: np.ndarray
     choices: dict = dataclasses.field(default_factory=dict)   # the discretisation used and why (summary.json)
+
+    @case_keys(MECHANICS)
+    def problem(self, fm: FracturedMesh):
+        """The :class:`~polypore.models.mechanics.ContactMechanics` of this setup on ``fm`` (its
+        InputErrors name the case-file keys)."""
+        from ..models.mechanics import ContactMechanics
+
+        return ContactMechanics(fm, self.data, self.solver, self.newton)
 
 
 def vector_field(value, field: str, dim: int, params, exact=None, exact_fn=None):
@@ -219,6 +229,7 @@ def _exact(spec, fm: FracturedMesh, params, E, nu, mu, lam):
     return sol
 
 
+@case_keys(MECHANICS)
 def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
     """The mechanics tables of the case as model data for the mesh ``fm`` (InputError naming the field)."""
     spec = case.spec
@@ -270,7 +281,7 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
                          bubble_stabilisation=sec.bubble_stabilisation,
                          nodal_stabilisation=nodal,
                          **({"order": order} if order != 1 else {}))
-    return MechanicsSetup(data, LinearSolver(s.linear, **s.backend_options()), newton, exact, E, nu, choices)
+    return MechanicsSetup(data, solver_choice(s.linear, **s.backend_options()), newton, exact, E, nu, choices)
 
 
 def is_simplicial(mesh) -> bool:

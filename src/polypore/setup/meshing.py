@@ -56,6 +56,7 @@ from ..mesh import FracturedMesh, FractureSpec
 from ..mesh.mesh import with_boundary_parts, with_regions
 from .casefile import CaseFile
 from .generators import REGISTRY, resolve
+from .translate import CORNERPOINT, MESH, case_keys
 
 log = logging.getLogger("polypore")
 
@@ -204,6 +205,7 @@ def _with_side_tables(case: CaseFile):
     return fm, _CORNERPOINT.get(fm.mesh), _REFINED.get(fm.mesh)
 
 
+@case_keys(MESH)          # the mesh layer's parameter names -> mesh.*, fractures.* keys
 def _build_fractured_mesh(case: CaseFile) -> FracturedMesh:
     spec = case.spec
     m = spec.mesh
@@ -402,7 +404,8 @@ def build_cornerpoint(case: CaseFile, spec, t0: float) -> FracturedMesh:
 
     m = spec.mesh
     grid = _cornerpoint_grid(spec)
-    mesh, info = process_grid(grid, nonplanar=m.nonplanar, regions=m.region_keyword, snap=m.snap)
+    with case_keys(CORNERPOINT):
+        mesh, info = process_grid(grid, nonplanar=m.nonplanar, regions=m.region_keyword, snap=m.snap)
     log.info("%s grid %s: %d active cells -> %d cells, %d faces; faults %s (%.2f s)", m.generator,
              "×".join(map(str, grid.dims)), info.n_active, mesh.n_cells, mesh.n_faces,
              {k: int(v.size) for k, v in info.faults.items()}, time.perf_counter() - t0)

@@ -20,6 +20,8 @@ from .flow import flow_setup
 from .insitu import reference_state
 from .limits import machine_memory
 from .mechanics import mechanics_setup
+from .translate import POROMECHANICS, case_keys
+from .solver import SOLVER
 
 log = logging.getLogger("polypore")
 
@@ -89,6 +91,7 @@ def resolve_linear(linear: str, fm, order: int, pardiso: bool) -> tuple[str, str
                              "gigabytes; pip install 'polypore[fast]' for PARDISO")
     return direct, f"auto: about {n:,} unknowns, direct ({direct})"
 
+@case_keys(POROMECHANICS)
 def poro_setup(case: CaseFile, fm):
     """(Poromechanics model, flow setup, mechanics setup) for a case on the mesh ``fm``."""
     spec = case.spec
@@ -103,7 +106,8 @@ def poro_setup(case: CaseFile, fm):
     linear, why = resolve_linear((spec.solver.linear if spec.solver is not None else "auto"), fm,
                                  ms.data.order, have_pardiso())
     if linear not in ("auto", ms.solver.backend):
-        ms = dataclasses.replace(ms, solver=dataclasses.replace(ms.solver, backend=linear))
+        with case_keys(SOLVER):
+            ms = dataclasses.replace(ms, solver=dataclasses.replace(ms.solver, backend=linear))
     log.info("linear solver: %s (%s)", ms.solver.backend, why)
     ms.choices |= {"linear_solver": ms.solver.backend, "linear_solver_source": why}
     fs = flow_setup(case, fm)

@@ -2,8 +2,8 @@
 
 Repeatability: MKL PARDISO's threaded factorisation adds in an order that changes from run to
 run, and semi-smooth Newton turns those last-digit differences into different active-set
-histories (dfm-2d, 30 steps, 2 threads: 141, 155 and 157 Newton iterations in three identical
-runs). MKL's conditional numerical reproducibility (CNR) fixes that order; MKL reads
+histories (different Newton iteration counts in identical runs). MKL's conditional numerical
+reproducibility (CNR) fixes that order; MKL reads
 ``MKL_CBWR`` once, when it is first used, so it is set here, before any module of this package
 loads pypardiso. A value set by the user is kept (docs/poromechanics.md, "Repeatable runs").
 """

@@ -2,10 +2,9 @@
 
 pyamg's ``smoothed_aggregation_solver`` holds, while it builds the finest level of a large S,
 a strength matrix (a copy of S), ω/ρ D⁻¹S (two more copies, one scaled from the other) and the
-full product S P for the Galerkin operator: on the 10⁵-cell weak-scaling grid's condensed
-mechanics block (2.5·10⁷ entries, 0.3 GB) its set-up peaked 1.5 GB above the S it was given —
-the run's peak. :func:`sa_hierarchy` builds that finest level itself, with the same defaults and
-the same mathematics, and leaves the (small) coarser levels to pyamg:
+full product S P for the Galerkin operator, which made its set-up a large run's memory peak
+(docs/iterative_cornerpoint.md, sixth session). :func:`sa_hierarchy` builds that finest level
+itself, with the same defaults and the same mathematics, and leaves the (small) coarser levels to pyamg:
 
 * strength: pyamg's symmetric measure with θ = 0 keeps every stored entry of S, and the
   aggregation reads only the pattern, so S itself is the strength matrix (pyamg has this

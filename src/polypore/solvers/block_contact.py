@@ -21,9 +21,9 @@ c_σ/ρ (a face-size multiple of the neighbouring cells' stiffness), and
     S = A − Bt Cl̂⁻¹ Cû
 
 is symmetric positive definite and elasticity-like: smoothed-aggregation AMG with the
-rigid-body near-nullspace works on it. (Regularising with ρ c_σ I on the unmodified block,
-the first version, perturbed the sliding direction too: 70–200 GMRES iterations instead of
-10–30 on C5.) The regularisation only enters the preconditioner, never the solution.
+rigid-body near-nullspace works on it. (Regularising with ρ c_σ I on the unmodified block
+perturbs the sliding direction too and costs several times the GMRES iterations,
+docs/iterative_cornerpoint.md.) The regularisation only enters the preconditioner, never the solution.
 
 **Coupled systems** (:class:`BlockPoroSolver`) add the pressures p with the Biot blocks
 G_up, G_pu and the flow block F. The pressure Schur complement F − G_pu S⁻¹ G_up is
@@ -56,6 +56,7 @@ from ..core.csr import csr_positions_in_rows
 from ..core.errors import RunError
 from ..core.interruptible import interruptible
 from .block_jacobian import BlockJacobian, BorrowedValues, Unchanged, abs_matvec, block_diag_csr
+from .interface import BlockOptions, SolverDefaults
 from .linear import repeatable_random
 from ..core.timing import SPLIT
 
@@ -108,8 +109,8 @@ class _Factorised:
             import pypardiso
 
             # S is symmetric positive definite (module docstring): Cholesky-type factors on its
-            # upper triangle have half the entries of the unsymmetric LU and solve 25 % faster
-            # (emerald-injection: 6.4e6 against 1.2e7 entries).
+            # upper triangle have half the entries of the unsymmetric LU and solve faster
+            # (docs/iterative_cornerpoint.md).
             U = sp.triu(S, format="csr")
             U.sort_indices()
             ps = pypardiso.PyPardisoSolver(mtype=2)
@@ -120,8 +121,8 @@ class _Factorised:
                 # forward, diagonal and backward substitution as three phases instead of phase 33:
                 # 33 adds two steps of iterative refinement per solve (iparm(7) reports 2 even on
                 # these pivot-free Cholesky factors), each a further pair of substitutions and a
-                # product with S: 29 ms against 8 ms per solve of Emerald's 28,299-row S, the same
-                # residual (5e-13). A preconditioner needs no refinement.
+                # product with S, for the same residual (docs/iterative_cornerpoint.md, eleventh session).
+                # A preconditioner needs no refinement.
                 r = np.asarray(r, float)
                 for phase in (331, 332, 333):
                     r = call(phase, r)
@@ -149,9 +150,8 @@ def _amg_hierarchy(S, B=None):
     from .amg_setup import sa_hierarchy
 
     # splu on the coarsest level: pyamg's default dense pinv is recomputed per cycle in some
-    # versions (2 s per V-cycle on C5's 28k-dof block instead of 0.05 s); the finest level built
-    # without pyamg's copies of S (amg_setup.py: the same hierarchy, 1.5 GB less set-up peak on the
-    # 10⁵-cell grid)
+    # versions (docs/iterative_cornerpoint.md); the finest level built without pyamg's copies of S
+    # (amg_setup.py: the same hierarchy, a lower set-up peak)
     with repeatable_random():        # the set-up's random start vectors (linear.repeatable_random)
         return sa_hierarchy(S, B, max_coarse=1000, coarse_solver="splu")
 
@@ -180,16 +180,14 @@ class _CondensedSolve:
     (PARDISO when installed, else SuperLU). The elastic block is constant and the condensed
     contact rows change only with the faces' states and slip directions, so on faults that stay
     stuck one set-up serves the whole run. S is recognised by a SHA-1 digest of its pattern and
-    values: keeping copies to compare against held 75 MB on the 30,000-cell study.
+    values (copies to compare against cost memory, docs/iterative_cornerpoint.md, third session).
 
     With AMG, a changed S keeps the AMG hierarchy (aggregates, transfers, coarse operators) of
     an earlier S while it differs from that one on few rows (``REUSE_ROWS`` of them changed
     diagonal: the condensed contact rows of fault dofs); S replaces the finest operator and its
     smoother (`_refit`), and in 3D the line smoother keeps its lines, colours and band orders and
-    takes S's values (:meth:`.line_smoother.LineSmoothedAMG.refit`). On the weak-scaling and
-    30,000-cell systems (day 1's hierarchy on day 3's with faces opened and slipping) the coupled
-    GMRES counts stay the same (9, 12, 33 against 9, 12, 32; 17, 4, 21 against the same), and the
-    10⁴-cell weak-scaling run's preconditioner set-up fell from 43 to 11.5 s.
+    takes S's values (:meth:`.line_smoother.LineSmoothedAMG.refit`). The coupled GMRES counts
+    stay the same and the set-up time falls (docs/iterative_cornerpoint.md, fifth session).
     """
 
     def __init__(self, mechanics: str, near_nullspace=None):
@@ -249,7 +247,7 @@ class _CondensedSolve:
     def _digest(S) -> tuple:
         h = hashlib.sha1()
         for a in (S.indptr, S.indices, S.data):
-            h.update(np.ascontiguousarray(a))
+            h.update(np.ascontiguousarray(a))       # type: ignore[arg-type]  # numpy's stubs: no Buffer
         return S.shape, S.nnz, h.digest()
 
     def __call__(self, S):
@@ -327,8 +325,8 @@ class ContactCondensation:
         Gm = sp.csr_matrix((g.ravel(), (np.arange(nf * d), np.repeat(np.arange(nf), d))), shape=(nf * d, nf))
         Cu_s = (sp.csr_matrix(Cu) - Gm @ (N @ Cu)).tocsr()
         # A is symmetric (to round-off): only the contact term, which lives on the fault dofs, is
-        # symmetrised, so that S is built once rather than as S, Sᵀ, S + Sᵀ and ½(S + Sᵀ) (380
-        # against ~100 MB of temporaries on the 30,000-cell study)
+        # symmetrised, so that S is built once rather than as S, Sᵀ, S + Sᵀ and ½(S + Sᵀ)
+        # (docs/iterative_cornerpoint.md, third session)
         P = (Bt @ Cinv @ Cu_s).tocsr()
         Q = (0.5 * (P + P.T)).tocoo()
         base = A if lend else _restricted(A)
@@ -337,7 +335,7 @@ class ContactCondensation:
             return Cinv, Cu_s, sp.csr_matrix(base - Q.tocsr()), Unchanged(A)
         # the models' elastic matrices hold the contact couplings (explicit zeros, models/
         # mechanics.py): S is A's restriction with those entries changed, no sparse sum (whose
-        # temporaries were the Newton iteration's peak: +1 GB on the 10⁵-cell grid); Q is
+        # temporaries were the Newton iteration's memory peak, docs/iterative_cornerpoint.md); Q is
         # coalesced, so the positions are distinct
         if lend:
             lent = BorrowedValues(A, pos, A.data[pos] - Q.data)
@@ -355,7 +353,7 @@ def _restricted(A) -> sp.csr_matrix:
 
 
 @dataclass
-class BlockContactSolver:
+class BlockContactSolver(SolverDefaults, BlockOptions):
     """Solve the 2×2 contact Newton system with GMRES + AMG on the condensed matrix.
 
     Parameters
@@ -364,10 +362,8 @@ class BlockContactSolver:
     d : block size of the multipliers (2 or 3)
     condensation : ContactCondensation
     near_nullspace : (n_u, k) rigid-body modes of the free displacement dofs
-    rtol, maxiter : GMRES tolerance (relative residual) and cap on inner iterations; Newton's
-        :class:`~.newton.KrylovTarget` overrides rtol per solve
-    accept_rtol : relative residual still returned when rtol is not reached (round-off floor)
-    mechanics : "amg" or "direct" (S factorised): as in :class:`BlockPoroSolver`
+    rtol, maxiter, restart, accept_rtol, mechanics (keyword-only) : :class:`~.interface.BlockOptions`;
+        Newton's :class:`~.newton.KrylovTarget` overrides rtol per solve
     """
 
     takes_target = True          # solve() accepts Newton's KrylovTarget (weights, forcing term)
@@ -376,16 +372,19 @@ class BlockContactSolver:
     d: int
     condensation: ContactCondensation
     near_nullspace: np.ndarray | None = None
-    rtol: float = 1e-8
-    maxiter: int = 300
-    restart: int = 100
-    accept_rtol: float = 1e-6
-    mechanics: str = "amg"
     iterations: list = field(default_factory=list)
     seconds: float = 0.0
 
     def __post_init__(self):
         self._s = _CondensedSolve(self.mechanics, self.near_nullspace)
+
+    @property
+    def backend(self) -> str:
+        return "block-direct" if self.mechanics == "direct" else "block-amg"
+
+    @property
+    def krylov_iterations(self) -> list[int]:
+        return self.iterations
 
     def release(self) -> None:
         """Free the set-up of S (factors or AMG hierarchy)."""
@@ -430,10 +429,9 @@ def attainable_rtol(J, x, w, bnorm: float) -> float:
     """ε ‖w∘(|J| |x|)‖ / ‖w∘b‖: the relative weighted residual below which a solution x of J x = b
     cannot be told from round-off (the componentwise backward error of a stable direct solve).
 
-    The first Newton system of a day on the weak-scaling grids has flow rows whose terms reach
-    1e9 (weighted) while their right-hand side is 0: PARDISO's own solution stops at 5.4e-7 where
-    this estimate is 1.6e-6, while the Newton test asked 1e-9 of GMRES (66 of its 183 iterations
-    bought 9.7e-7 → 5.1e-7). The next Newton system, from the corrected state, has 1e-15.
+    Flow rows with large weighted terms and a zero right-hand side (the first Newton system of a
+    day on the weak-scaling grids) put this floor far above a tight Newton target, where GMRES
+    would iterate on round-off (docs/iterative_cornerpoint.md, fifth session).
 
     Parameters
     ----------
@@ -454,10 +452,8 @@ def krylov_restart(restart: int, n: int) -> int:
     (restart + 1 vectors of n float64) stays within ``KRYLOV_BASIS_BYTES``, never below
     ``MIN_RESTART``.
 
-    At 10⁶ cells (7.8·10⁶ unknowns) a basis of 101 vectors is 6.3 GB, the largest single item of
-    such a run; systems up to ~1.8·10⁶ unknowns keep 100. On the weak-scaling systems restart 40
-    (30) took as many iterations as 100: 244 against 253 over six Newton systems at 3·10⁴ cells,
-    117 against 123 over two at 10⁵; 20 did not (140 against 55 on a day's first system).
+    The basis is the largest single item of a 10⁶-cell run; on the weak-scaling systems restart
+    40 costs no more iterations than 100, 20 does (docs/iterative_cornerpoint.md, seventh session).
     """
     fit = int(KRYLOV_BASIS_BYTES // (8 * max(n, 1))) - 1
     return int(max(min(restart, fit), min(restart, MIN_RESTART)))
@@ -483,11 +479,11 @@ def _gmres(J, rhs, apply, solver, target=None):
 
     Restart cycles are driven here, one SciPy call each, so that ``solver.maxiter`` caps the
     inner iterations and the true residual is checked after every cycle. On fine meshes it has a
-    round-off floor (C5 at 127k cells: 1.45e-8 relative while the preconditioned residual was at
-    1e-29); SciPy's own loop then restarts with ever smaller inner tolerances (40 000 iterations
-    in one solve). A cycle that did not halve the true residual, left within ``solver.accept_rtol``,
-    is therefore accepted: Newton only needs an inexact step. A tight solve (rtol <
-    ``FLOOR_CHECK``) also stops at :func:`attainable_rtol` when that is above rtol.
+    round-off floor, where SciPy's own loop would restart with ever smaller inner tolerances
+    (docs/iterative_cornerpoint.md, "Measurements cited by the code"). A cycle that did not halve
+    the true residual, left within ``solver.accept_rtol``, is therefore accepted: Newton only needs
+    an inexact step. A tight solve (rtol < ``FLOOR_CHECK``) also stops at :func:`attainable_rtol`
+    when that is above rtol.
     """
     n = J.shape[0]
     its = [0]
@@ -582,12 +578,12 @@ class _PressureSolve:
         (n_p,) bool for :class:`~.pressure_twolevel.TwoLevelPressure` (without them "twolevel"
         falls back to smoothed aggregation on the whole block)."""
         F = sp.csr_matrix(F)
-        key = _CondensedSolve._digest(F)        # not a copy of F's values (43 MB at 10⁵ cells)
+        key = _CondensedSolve._digest(F)        # not a copy of F's values (docs/iterative_cornerpoint.md)
         if key == self._key:
             return
         # the previous step's set-up goes before the new one is made (its apply closure held the
-        # old factors through the new factorisation); PARDISO keeps factors until told: without
-        # this, peak memory grew to 11 GB over C5's 50 steps at 46k cells
+        # old factors through the new factorisation); PARDISO keeps factors until told (without
+        # this, peak memory grew step by step: docs/iterative_cornerpoint.md)
         self.release()
         lump = np.asarray((Gpu @ sp.diags(1.0 / dA)).multiply(Gup.T).sum(axis=1)).ravel()
         Sp = sp.csr_matrix(F - sp.diags(lump))
@@ -619,8 +615,8 @@ class _PressureSolve:
         else:
             sign = -1.0 if np.mean(Sp.diagonal()) < 0 else 1.0   # AMG wants a positive definite operator
             # B: the near-null space (a constant pressure in the scaled unknowns, 1/s); with
-            # per-unknown scales, pyamg's default (constants) misses it and GMRES needs ~1.7× more
-            # iterations (22-28 -> 40-45 on a small C5)
+            # per-unknown scales, pyamg's default (constants) misses it and GMRES needs more
+            # iterations (docs/iterative_cornerpoint.md)
             M = _amg(sign * 0.5 * (Sp + Sp.T), None if B is None else np.asarray(B, float).reshape(-1, 1))
             self.apply = lambda r: sign * (M @ r)
         self._key = key
@@ -634,7 +630,7 @@ class _PressureSolve:
 
 
 @dataclass
-class BlockPoroSolver:
+class BlockPoroSolver(SolverDefaults, BlockOptions):
     """GMRES for the coupled step Jacobian [u, l, p] with a block lower-triangular preconditioner.
 
     The (u, l) part is condensed as in :class:`BlockContactSolver` into S (AMG, set up again only
@@ -667,24 +663,29 @@ class BlockPoroSolver:
     near_nullspace: np.ndarray | None = None
     pressure_nullspace: np.ndarray | None = None
     pressure_groups: tuple | None = None
-    pressure: str = "auto"
-    mechanics: str = "amg"
-    rtol: float = 1e-8
-    maxiter: int = 400
-    # the largest restart; GMRES keeps restart + 1 vectors of the system's size, and on large
-    # systems fewer are kept (krylov_restart)
-    restart: int = 100
+    maxiter: int = field(default=400, kw_only=True)
     # the coupled systems' round-off floor in Newton's weighted norm is higher than the contact
-    # ones': on the 30,000-cell generated corner-point grid PARDISO's own solution of the first
-    # Newton system has a relative residual of 3e-6, and GMRES stalled there for 400 iterations
-    # against 1e-6 (docs/iterative_cornerpoint.md)
-    accept_rtol: float = 1e-4
+    # ones': on corner-point grids even PARDISO's own solution stops above 1e-6, where GMRES would
+    # stall (docs/iterative_cornerpoint.md)
+    accept_rtol: float = field(default=1e-4, kw_only=True)
     iterations: list = field(default_factory=list)
     seconds: float = 0.0
 
     def __post_init__(self):
         self._s = _CondensedSolve(self.mechanics, self.near_nullspace)
         self._p = _PressureSolve("twolevel" if self.pressure == "auto" and self.mechanics == "amg" else self.pressure)
+
+    @property
+    def backend(self) -> str:
+        return "block-direct" if self.mechanics == "direct" else "block-amg"
+
+    @property
+    def krylov_iterations(self) -> list[int]:
+        return self.iterations
+
+    def set_pressure_nullspace(self, b) -> None:
+        """The near-null space of Ŝ_p for the coming systems (``pressure_nullspace``)."""
+        self.pressure_nullspace = b
 
     def release(self) -> None:
         """Free the set-ups of S and Ŝ_p (after the last step; a later solve builds them again)."""

@@ -10,8 +10,8 @@ Assembled into one CSR matrix it repeats A, the largest block, and GMRES, the co
 the fixed-stress pressure operator only ever use the blocks. Held by blocks, A is the model's own
 elastic matrix's free block (`FreeSplit`: the elastic matrix is stored that way), and the assembled pattern of the
 whole Jacobian (its slot list and indices, int32 each per entry), its fixed part and its data
-(float64 each per entry) are never made: on the 10⁵-cell weak-scaling grid 0.85 GB of the 4.1 GB
-per Newton iteration (docs/iterative_cornerpoint.md, sixth session).
+(float64 each per entry) are never made (a fifth of a Newton iteration's memory on large grids,
+docs/iterative_cornerpoint.md, sixth session).
 """
 
 from __future__ import annotations
@@ -55,7 +55,7 @@ class FreeSplit:
     condensed S shares its indices with); ``rest`` holds A's entries in a fixed row or column (csr,
     full numbering: the Dirichlet couplings and the reactions). ``A @ u`` and ``diagonal()`` are
     A's; held this way the elastic matrix needs no separate restricted copy or index map for the
-    block solvers (1.3 kB per cell on the 10⁵-cell weak-scaling grid).
+    block solvers (docs/iterative_cornerpoint.md, "Measurements cited by the code").
 
     Parameters
     ----------
@@ -104,8 +104,8 @@ class BorrowedValues:
     The condensed S = A − ½(P + Pᵀ) differs from the elastic block A only on the contact
     couplings, and A is stored with those entries (zeros where A has none), so S can be A's own
     arrays with ``values`` written at ``pos`` (:meth:`.block_contact.ContactCondensation.condense`
-    with ``borrow``): a second value array of A's size is not needed (2.1 kB per cell on the
-    10⁵-cell weak-scaling grid). While borrowed, this object is A for the Krylov solve: ``@``,
+    with ``borrow``): a second value array of A's size is not needed
+    (docs/iterative_cornerpoint.md, seventh session). While borrowed, this object is A for the Krylov solve: ``@``,
     :meth:`diagonal` and :meth:`abs_matvec` add E = A − S, held on ``pos`` only; :meth:`restore`
     writes A's saved values back (exactly: assigned, not re-added).
 

@@ -16,6 +16,8 @@ near-null space only (no mesh or coordinates are passed in):
    colour are not coupled in S; each colour's block-diagonal part is factorised once, as a band
    (`LineBlocks`).
 """
+from typing import Any
+
 import numpy as np
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
@@ -114,7 +116,7 @@ def find_lines(S, B, attach_bubbles=True):
     bub[node[~B.any(1)]] = True
     P = sp.csr_matrix((np.ones(n), (np.arange(n), node)), shape=(n, nn))
     # ‖S_IJ‖_F² for all node pairs, summed over blocks of rows of S (S∘S of all rows at once was
-    # the set-up's peak: +0.7 GB on the 10⁵-cell grid); the normalisation makes w scale-free per node
+    # the set-up's memory peak, docs/iterative_cornerpoint.md); the normalisation makes w scale-free per node
     S = sp.csr_matrix(S)
     F = None
     for a in range(0, n, ROW_BLOCK):
@@ -149,11 +151,10 @@ class LineBlocks:
 
     Lines are paths of nodes (with their cells' bubbles), so reverse Cuthill–McKee puts D in a band
     of 10–50 super-diagonals and LAPACK's banded Cholesky (``dpbtrf``) factorises it in
-    n·(band + 1) numbers. SuperLU was used before: on the 30,000-cell study's S its 18 colour
-    factorisations allocated 0.9 GB for 19 MB of factors (its first guess is 20 × nnz, most of it
-    never touched), which glibc's heap then recycled into resident memory Newton iteration after
-    Newton iteration (1.36 → 1.83 GB over one step). A block whose band is wider than
-    ``MAX_BAND`` or that is not positive definite is factorised by SuperLU as before.
+    n·(band + 1) numbers. SuperLU allocates far more than the factors take (its first guess is 20 × nnz), which glibc's
+    heap recycles into resident memory Newton iteration after Newton iteration
+    (docs/iterative_cornerpoint.md, fifth session). A block whose band is wider than
+    ``MAX_BAND`` or that is not positive definite is factorised by SuperLU.
 
     Parameters
     ----------
@@ -170,15 +171,15 @@ class LineBlocks:
         Dp = sp.coo_matrix(D if ordered else D[p][:, p])
         band = int(np.abs(Dp.row - Dp.col).max(initial=0))
         self.order = idx[p]
-        self._chol = self._lu = None
+        self._chol: np.ndarray | None = None
+        self._lu: Any = None           # SuperLU
         if band <= MAX_BAND:
             up = Dp.row <= Dp.col
             ab = np.zeros((band + 1, D.shape[0]))
             ab[band + Dp.row[up] - Dp.col[up], Dp.col[up]] = Dp.data[up]
             # one BLAS thread: the banded Cholesky's blocks are small, and OpenBLAS's threads
-            # spin against each other when the machine is busy (band 48, 2·10⁵ rows: 0.28 s on one
-            # thread, 1.9 s on two beside one other process; set-ups of 10 minutes were seen on a
-            # 2.5·10⁵-cell grid under load)
+            # spin against each other when the machine is busy (several times slower beside one other
+            # process, docs/iterative_cornerpoint.md, seventh session)
             with threadpool_limits(1, user_api="blas"):
                 c, info = lapack.dpbtrf(ab, overwrite_ab=1)
             if info == 0:
@@ -202,9 +203,9 @@ class LineSmoothedAMG:
     Each colour keeps a copy of its rows of S (in its band order) for its residual.
 
     The AMG works on S in its own numbering. Renumbered colour by colour (so that a colour's rows
-    would be a slice of it, no copies), its level-0 Gauss–Seidel sweeps in that order: Emerald's
-    systems then needed 274 coupled GMRES iterations instead of 171 (the weak-scaling ones 41–58
-    instead of 43–62, no gain there to weigh against that). Lines, colours and band orders are kept by
+    would be a slice of it, no copies), its level-0 Gauss–Seidel sweeps in that order, which costs
+    coupled GMRES iterations on Emerald and gains nothing elsewhere (docs/iterative_cornerpoint.md,
+    sixth session). Lines, colours and band orders are kept by
     :meth:`refit`, which
     takes a new S of the same pattern (between Newton iterations only contact rows change).
 

@@ -7,7 +7,8 @@ Backends
 ``amg``      pyamg smoothed aggregation (optionally with a near-nullspace such as rigid-body
              modes) preconditioning CG (symmetric) or GMRES (extra ``amg``).
 ``block-amg`` for contact Newton systems: GMRES preconditioned by AMG on the condensed
-             displacement block (:mod:`.block_contact`); the model builds it.
+             displacement block (:mod:`.block_contact`), built by :mod:`.factory` from the model's
+             block problem.
 ``petsc``    PETSc through petsc4py (extra ``mpi`` + Debian's petsc4py, docs/parallel.md): CG
              (symmetric) or GMRES with GAMG or BoomerAMG, tuned by PETSc options
              (``petsc_options``); on N ranks each rank passes its rows (:mod:`.petsc`).
@@ -16,8 +17,8 @@ Backends
              on that block costs 5× the GMRES iterations (docs/iterative_cornerpoint.md). Coupled
              models only; a mechanics-only model solves directly.
 ``block-petsc`` the block preconditioners of ``block-amg`` in PETSc (multipliers condensed by
-             polypore, :mod:`.petsc_condensed`, or PCFIELDSPLIT, :mod:`.petsc_fieldsplit`); the
-             model builds it.
+             polypore, :mod:`.petsc_condensed`, or PCFIELDSPLIT, :mod:`.petsc_fieldsplit`); built
+             by :mod:`.factory`.
 ``auto``     pardiso if installed, else superlu; for coupled 3D systems the setup may pick a block
              solver instead (:func:`polypore.setup.poromechanics.resolve_linear`).
 
@@ -42,22 +43,66 @@ from ..core.interruptible import interruptible
 from ..core.errors import InputError, RunError
 from ..core.memory import trim_heap
 from ..core.timing import SPLIT
+from .interface import SolverDefaults
 
 log = logging.getLogger("polypore")
 
 BACKENDS = ("auto", "superlu", "pardiso", "amg", "block-amg", "block-direct", "petsc", "block-petsc")
+BLOCK_BACKENDS = ("block-amg", "block-direct", "block-petsc")      # built from a model's block problem
 
 
 def release_solver(solver) -> None:
-    """Free a solver's matrices and preconditioner set-ups (the PETSc solvers' ``release``; the
-    others hold nothing to free) and return the freed heap, once no solve follows. On N ranks every
+    """Free a solver's matrices and preconditioner set-ups (its ``release``: the PETSc solvers';
+    the others hold nothing to free) and return the freed heap, once no solve follows. On N ranks every
     rank calls this at the same point, so the collective destroys happen while PETSc runs: a
     block-petsc solver left to the interpreter's teardown was destroyed after PETSc's finalisation
     and crashed a 2-rank static run at exit."""
-    release = getattr(solver, "release", None)
-    if release is not None:
-        release()
+    solver.release()
     trim_heap()
+
+
+def resolve_backend(backend: str, petsc_options=None) -> tuple[str, dict | None]:
+    """(backend, petsc_options) as they run here: under mpiexec the PETSc counterpart
+    (:func:`distributed_backend`), "auto" as "pardiso" when installed else "superlu". Raises
+    InputError("backend") for an unknown backend or one whose optional extra is missing."""
+    if backend not in BACKENDS:
+        raise InputError("backend", f"unknown linear solver {backend!r}; allowed: {', '.join(BACKENDS)}")
+    from ..parallel.layout import context
+
+    if context() is not None:
+        backend, petsc_options = distributed_backend(backend, petsc_options)
+    if backend == "auto":
+        backend = "pardiso" if have_pardiso() else "superlu"
+    if backend == "pardiso" and not have_pardiso():
+        raise InputError("backend", "'pardiso' needs the optional extra: pip install 'polypore[fast]'")
+    if backend in ("amg", "block-amg", "block-direct"):
+        try:
+            import pyamg  # noqa: F401
+        except ImportError:
+            raise InputError("backend", "'amg' needs the optional extra: pip install 'polypore[amg]'") from None
+    if backend in ("petsc", "block-petsc"):
+        from .petsc import petsc
+
+        petsc()                 # InputError with the install route when petsc4py is missing
+    return backend, petsc_options
+
+
+def distributed_backend(backend: str, petsc_options=None) -> tuple[str, dict | None]:
+    """Under mpiexec (docs/parallel.md): the PETSc counterpart of a backend. The direct ones (auto,
+    superlu, pardiso) become MUMPS's distributed LU, ``amg`` the ``petsc`` backend, ``block-amg``
+    and ``block-direct`` ``block-petsc``; the [solver.petsc] table still applies on top."""
+    was = backend
+    if was in ("auto", "superlu", "pardiso"):
+        backend = "petsc"
+        opts = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps", **(petsc_options or {})}
+        petsc_options = type(petsc_options)(opts) if isinstance(petsc_options, dict) else opts
+    elif was == "amg":
+        backend = "petsc"
+    elif was in ("block-amg", "block-direct"):
+        backend = "block-petsc"
+    if was != backend:
+        log.debug("distributed run: linear solver %r runs as %r", was, backend)
+    return backend, petsc_options
 
 
 @contextlib.contextmanager
@@ -101,12 +146,12 @@ class SolveStats:
 
 
 @dataclass
-class LinearSolver:
+class LinearSolver(SolverDefaults):
     """Solve A x = b for sparse A (csr/csc), b of shape (n,) or (n, k).
 
     Parameters
     ----------
-    backend : one of BACKENDS
+    backend : one of BACKENDS but the block ones (those :mod:`.factory` builds for a model)
     symmetric : bool
         The matrix is symmetric (CG instead of GMRES for ``amg``).
     rtol : float
@@ -127,43 +172,14 @@ class LinearSolver:
     layouts: dict | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
-        if self.backend not in BACKENDS:
-            raise InputError("solver.linear", f"unknown linear solver {self.backend!r}; allowed: {', '.join(BACKENDS)}")
-        from ..parallel.layout import context
+        if self.backend in BLOCK_BACKENDS:
+            raise InputError("backend", f"{self.backend!r} is a block solver: polypore.solvers.factory builds it "
+                             "from a model's block problem")
+        self.backend, self.petsc_options = resolve_backend(self.backend, self.petsc_options)
 
-        if context() is not None:
-            self._distributed_backend()
-        if self.backend == "auto":
-            self.backend = "pardiso" if have_pardiso() else "superlu"
-        if self.backend == "pardiso" and not have_pardiso():
-            raise InputError("solver.linear", "'pardiso' needs the optional extra: pip install 'polypore[fast]'")
-        if self.backend in ("amg", "block-amg", "block-direct"):
-            try:
-                import pyamg  # noqa: F401
-            except ImportError:
-                raise InputError("solver.linear",
-                                 "'amg' needs the optional extra: pip install 'polypore[amg]'") from None
-        if self.backend in ("petsc", "block-petsc"):
-            from .petsc import petsc
-
-            petsc()                 # InputError with the install route when petsc4py is missing
-
-    def _distributed_backend(self):
-        """Under mpiexec (docs/parallel.md): the PETSc counterpart of the chosen backend. The direct
-        ones (auto, superlu, pardiso) become MUMPS's distributed LU, ``amg`` the ``petsc`` backend,
-        ``block-amg`` and ``block-direct`` ``block-petsc``; the [solver.petsc] table still applies on top."""
-        was = self.backend
-        if was in ("auto", "superlu", "pardiso"):
-            self.backend = "petsc"
-            opts = {"ksp_type": "preonly", "pc_type": "lu", "pc_factor_mat_solver_type": "mumps",
-                    **(self.petsc_options or {})}
-            self.petsc_options = type(self.petsc_options)(opts) if isinstance(self.petsc_options, dict) else opts
-        elif was == "amg":
-            self.backend = "petsc"
-        elif was in ("block-amg", "block-direct"):
-            self.backend = "block-petsc"
-        if was != self.backend:
-            log.debug("distributed run: linear solver %r runs as %r", was, self.backend)
+    @property
+    def krylov_iterations(self) -> list[int]:
+        return self.stats.iterations
 
     def solve(self, A, b) -> np.ndarray:
         """x (n,) or (n, k) with A x = b: A (n, n) sparse, or on N ranks this rank's rows
@@ -175,7 +191,7 @@ class LinearSolver:
             A = sp.csr_matrix(A)
         b = np.asarray(b, float)
         if isinstance(A, OwnedRows) and self.backend != "petsc":
-            raise InputError("solver.linear", f"{self.backend!r} cannot take a distributed matrix (docs/parallel.md)")
+            raise InputError("backend", f"{self.backend!r} cannot take a distributed matrix (docs/parallel.md)")
         if self.backend == "superlu":
             x = self._superlu(A, b)
         elif self.backend == "pardiso":
@@ -188,15 +204,12 @@ class LinearSolver:
                     # pypardiso's module-level solver keeps the factors and a copy of A for a repeat
                     # of the same matrix, which Newton iterations never give: the mechanics-only
                     # initial equilibrium's factors stayed resident through whole coupled runs
-                    # (1.3 GB of the 30,000-cell study's 2.5 GB, docs/iterative_cornerpoint.md)
+                    # (about half the study's peak, docs/iterative_cornerpoint.md)
                     pypardiso.scipy_aliases.pypardiso_solver.free_memory(everything=True)
         elif self.backend == "amg":
             x = self._amg(A, b)
-        elif self.backend == "petsc":
-            x = self._petsc(A, b)
         else:
-            raise InputError("solver.linear", f"{self.backend!r} applies to contact mechanics only (the model sets "
-                             "it up)")
+            x = self._petsc(A, b)
         if not np.all(np.isfinite(x)):
             raise RunError("the linear system is singular (the solution has NaN/Inf): check that every part of the "
                            "body is held (Dirichlet conditions) and that the contact data are consistent")

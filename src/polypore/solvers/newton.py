@@ -7,10 +7,10 @@ iteration and decides convergence or failure.
 **Inexact Newton (forcing terms).** With an iterative linear solver (one whose ``takes_target``
 is true, the block solvers) and row weights from the model (``Linearisation.row_scale``),
 each Krylov solve is asked for a relative residual η_k in the weighted norm ‖w∘r‖₂, the norm
-of Newton's own test, instead of a fixed 1e-8 in the plain 2-norm. The plain norm let one kind
-of equation dominate: on C5 at 46k cells the multiplier rows held the whole right-hand side
-(‖r_λ‖ = 3e5 N against ‖r_u‖ = 0.45 N at the second iterate) and GMRES, asked for 1e-8 of it,
-stalled at 1.1–1.8e-6, the round-off floor of that system (a direct solve reaches 2.5e-6).
+of Newton's own test, instead of a fixed 1e-8 in the plain 2-norm. The plain norm lets one kind
+of equation dominate (on C5 the multiplier rows hold nearly the whole right-hand side), and GMRES,
+asked for 1e-8 of it, stalls at the round-off floor of that system (docs/poromechanics.md,
+"Measurements cited by the code").
 η_k is Eisenstat–Walker's choice 2 (SIAM J. Sci. Comput. 17, 1996):
 
     η_k = γ (‖F_k‖/‖F_{k−1}‖)^α,  γ = 0.9, α = 2,  kept ≥ γ η_{k−1}^α when that is > 0.1,
@@ -28,9 +28,8 @@ the confirming step that a residual which is not piecewise linear, e.g. with dil
 asked for θ tol/‖F_k‖ itself, up to ``forcing_confirm``. A first iteration that is not tight gets
 ``forcing_max``: the poromechanics time loop passes ``first_tight`` only after a step that
 converged in one iteration (or left every state as it found it), because an exact first solve is
-wasted when the active set then moves (C5 at 46k cells: 56 of a step's ~140 GMRES iterations in
-the first half of the run), and not for a run's first step, whose norm from a state at rest holds
-the sources alone (models/poromechanics.py).
+wasted when the active set then moves (docs/poromechanics.md), and not for a run's first step,
+whose norm from a state at rest holds the sources alone (models/poromechanics.py).
 """
 
 from __future__ import annotations
@@ -45,7 +44,7 @@ import numpy as np
 from ..core import live
 from ..core.errors import RunError
 from ..core.memory import trim_heap
-from .linear import LinearSolver
+from .interface import LinearSystemSolver
 from ..core.timing import SPLIT
 
 log = logging.getLogger("polypore")
@@ -112,29 +111,29 @@ class NewtonOptions:
     min_step: float = 1.0 / 64
     # Give up early when the residual has not halved over the last `stall_iterations`
     # iterations (active sets cycling): the caller cuts the time step at once instead of
-    # spending the remaining iterations (C5: 50 iterations ≈ 5 min at 46k cells, after which
-    # two half steps converge in ~9 iterations each). 0 (the default, static problems) disables
+    # spending the remaining iterations (two half steps converge quickly, docs/poromechanics.md).
+    # 0 (the default, static problems) disables
     # the test; the time loops of runs/ set it.
     stall_iterations: int = 0
     # With stall_iterations set, also give up when the line search has cut each of the last
     # `crawl_iterations` steps to ≤ `crawl_step` and the residual has not halved over them: the
     # iterate sits at a kink of the contact law that neither one-sided linearisation crosses (a face
     # flipping stick ↔ slip, its Newton slip predicted backwards; docs/iterative_cornerpoint.md, "What
-    # the stall is"). Measured: the 10⁴-cell weak-scaling grid, day 3, steps of 1/16–1/64 from
-    # iteration 8 on, cut at iteration 18 by the halving test; a smaller time step converges.
+    # the stall is"). A smaller time step
+    # converges.
     crawl_iterations: int = 3
     crawl_step: float = 1.0 / 8
     # Attainable accuracy: with the active set fixed and an increment below
     # 10⁻² increment_tol (nothing moves), a residual up to `floor_factor` × tol is the round-off
-    # floor of the linear solves (cond(J) ε grows like h⁻²: 1.1e-8 on C5 at 23k cells after T/2,
-    # with increments of 1e-11), and the iterate is accepted instead of iterating to max_iterations.
+    # floor of the linear solves (cond(J) ε grows like h⁻², docs/poromechanics.md), and the iterate is
+    # accepted instead of iterating to max_iterations.
     floor_factor: float = 100.0
     # Forcing terms of the iterative linear solves (module docstring): "eisenstat-walker", or
     # "fixed" for the solver's own relative tolerance in the plain 2-norm (the behaviour before).
     # Direct solvers ignore it. forcing_max caps η_k (EW propose 0.9; looser caps cost Newton iterations);
     # forcing_min is the smallest η asked of a Krylov solver (below it round-off decides).
-    # C5 at 15k cells, 5 steps: η_max = 0.1 took 39 Newton / 279 GMRES iterations, 1e-2 36 / 299
-    # (fixed 1e-8: 34 / 807); a Newton iteration (AMG set-up, assembly) costs ~5 GMRES iterations.
+    # 1e-2 balances Newton against GMRES iterations (a Newton iteration costs ~5 GMRES ones;
+    # docs/poromechanics.md).
     forcing: str = "eisenstat-walker"
     forcing_max: float = 1e-2
     forcing_min: float = 1e-12
@@ -209,8 +208,8 @@ def forcing_term(fnorm: float, prev_fnorm: float | None, prev_eta: float | None,
         if need > options.forcing_max:
             # the iterate already (nearly) meets the test: this solve confirms it (a residual that
             # is not piecewise linear needs one more iterate), and any η ≤ need keeps the next
-            # residual below θ tol; capping it at forcing_max cost emerald-injection's block-direct
-            # run 16 of its 47 GMRES iterations per step on these confirming solves
+            # residual below θ tol; capping it at forcing_max wasted GMRES iterations on these
+            # confirming solves (docs/iterative_cornerpoint.md, "block-direct")
             return float(min(need, options.forcing_confirm))
         eta = need
     elif prev_fnorm is None or not prev_fnorm > 0:
@@ -225,7 +224,7 @@ def forcing_term(fnorm: float, prev_fnorm: float | None, prev_eta: float | None,
     return float(min(max(eta, options.forcing_min), options.forcing_max))
 
 
-def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.ndarray, solver: LinearSolver,
+def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.ndarray, solver: LinearSystemSolver,
                       increment_norm: Callable[[np.ndarray, np.ndarray], float],
                       options: NewtonOptions | None = None, verbose: bool = True,
                       first_tight: bool = True, x_pred: np.ndarray | None = None) -> NewtonResult:
@@ -262,32 +261,30 @@ def semismooth_newton(linearise: Callable[[np.ndarray], Linearisation], x0: np.n
         live.update(newton_end=True)
 
 
-def _krylov_total(solver) -> int | None:
-    """Krylov iterations of all the solves of ``solver`` so far (None: it does not count them)."""
-    its = getattr(solver, "iterations", None)
-    if its is None:
-        its = getattr(getattr(solver, "stats", None), "iterations", None)
-    return None if its is None else int(sum(its))
+def _krylov_total(solver: LinearSystemSolver) -> int:
+    """Krylov iterations of all the solves of ``solver`` so far."""
+    return int(sum(solver.krylov_iterations))
 
 
 def _newton(linearise, x0, solver, increment_norm, options, verbose, first_tight, x_pred, seen) -> NewtonResult:
-    inexact = options.forcing != "fixed" and bool(getattr(solver, "takes_target", False))
+    inexact = options.forcing != "fixed" and bool(solver.takes_target)
     prev_fnorm = prev_eta = None
     x = np.array(x0, float)
-    history = []
+    history: list[dict] = []
     t_lin = t_asm = 0.0
     prev_active = None
     inc = np.inf
     step = 1.0
     t0 = time.perf_counter()
     with SPLIT.timed("assembly"):
-        lin = None
+        lin: Linearisation | None = None
         if x_pred is not None:
             lin = linearise(np.array(x_pred, float))
             if np.all(np.isfinite(lin.residual)):
                 x = np.array(x_pred, float)
             else:
-                lin.jacobian = lin = None
+                lin.jacobian = None
+                lin = None
         if lin is None:
             lin = linearise(x)
     t_asm += time.perf_counter() - t0
@@ -347,7 +344,7 @@ def _newton(linearise, x0, solver, increment_norm, options, verbose, first_tight
                 dx = solver.solve(lin.jacobian, -lin.residual)
         t_lin += time.perf_counter() - t0
         if k0 is not None:
-            live.update(krylov_solved=_krylov_total(solver) - k0)
+            live.update(krylov_solved=(_krylov_total(solver) or 0) - k0)   # not None when k0 is not
         # the Jacobian is not needed any more: its memory (on N ranks this rank's rows) and the
         # solve's temporaries go back to the system before the line search assembles the next one
         lin.jacobian = None

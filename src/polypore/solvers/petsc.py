@@ -24,6 +24,7 @@ import logging
 import resource
 import time
 from collections.abc import Mapping
+from typing import Any
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,7 @@ import scipy.sparse as sp
 
 from ..core.errors import InputError, RunError
 from ..core.timing import SPLIT
+from .interface import SolverDefaults
 
 log = logging.getLogger("polypore")
 
@@ -71,7 +73,7 @@ def petsc():
     try:
         from petsc4py import PETSc
     except ImportError:
-        raise InputError("solver.linear", INSTALL) from None
+        raise InputError("backend", INSTALL) from None
     return PETSc
 
 
@@ -143,8 +145,8 @@ def collect_garbage(comm=None) -> None:
     petsc4py ≥ 3.18 does not destroy an object on a parallel communicator when its Python
     wrapper is garbage-collected (a destroy is collective, and ranks collect in different
     orders): it waits in the communicator's garbage until ``garbage_cleanup``. Without this every
-    work vector, null space and index set made per Newton iteration stayed allocated: C5 at 127k
-    cells grew by ≈ 0.4 GB per rank over 50 steps (docs/parallel.md). Called at the start of
+    work vector, null space and index set made per Newton iteration stayed allocated, and memory
+    grew step by step (docs/parallel.md). Called at the start of
     every Krylov solve, a point every rank reaches together.
     """
     P = petsc()
@@ -253,10 +255,10 @@ class OptionScope:
 
     def __init__(self, prefix: str, *layers: Mapping[str, str]):
         self.prefix = prefix
-        self.values = {}
+        self.values: dict[str, str] = {}
         for layer in layers:
             self.values.update(layer)
-        self.added = []
+        self.added: list[str] = []
 
     def __enter__(self):
         db = petsc().Options()
@@ -275,7 +277,7 @@ class OptionScope:
         return False
 
 
-_LIB = None
+_LIB: Any = None          # ctypes.CDLL of libpetsc, False when not found
 
 
 def unused_options(names) -> list[str]:
@@ -320,9 +322,9 @@ class ReusePolicy:
 
     def __post_init__(self):
         if int(self.max_age) < 1:
-            raise InputError(f"{FIELD}.reuse", f"max_age must be an integer ≥ 1, got {self.max_age!r}")
+            raise InputError("max_age", f"must be an integer ≥ 1, got {self.max_age!r}")
         if not self.growth >= 1.0:
-            raise InputError(f"{FIELD}.reuse_growth", f"must be ≥ 1, got {self.growth!r}")
+            raise InputError("growth", f"must be ≥ 1, got {self.growth!r}")
 
 
 @dataclass
@@ -357,7 +359,7 @@ class KrylovDriver:
         # a shared table is checked by the run's principal solver, not here (SharedOptions)
         self.rtol, self.maxiter, self.accept_rtol = rtol, maxiter, accept_rtol
         self.configure = configure          # callback(ksp) after set-up (near-null spaces of sub-blocks)
-        self.ksp = None
+        self.ksp: Any = None            # petsc4py KSP (no type stubs)
         self.age = 0
         self.base_its = None
         self.checked = isinstance(options, SharedOptions)
@@ -511,11 +513,11 @@ def amg_defaults(kind: str = "gamg", prefix: str = "", nullspace: bool = True) -
                f"{p}pc_hypre_boomeramg_strong_threshold": "0.5" if nullspace else "0.25"}
         if nullspace:
             # nodal coarsening only: the rigid-body interpolation (vec_interp_variant) of PETSc
-            # 3.18's hypre crashed (SEGV) on the 2nd–5th Newton system of C5 at 46k cells, and the
-            # solves were no cheaper with it (docs/parallel.md)
+            # 3.18's hypre crashed on C5's Newton systems, and the solves were
+            # no cheaper with it (docs/parallel.md)
             out[f"{p}pc_hypre_boomeramg_nodal_coarsen"] = "6"
         return out
-    raise InputError(f"{FIELD}.amg", f"unknown AMG {kind!r}; allowed: gamg, hypre")
+    raise InputError("amg", f"unknown AMG {kind!r}; allowed: gamg, hypre")
 
 
 AMG_KINDS = ("gamg", "hypre")
@@ -523,7 +525,7 @@ AMG_KINDS = ("gamg", "hypre")
 
 # ---- single-matrix solver ----------------------------------------------------------------------
 @dataclass
-class PetscLinearSolver:
+class PetscLinearSolver(SolverDefaults):
     """A x = b with PETSc: CG (symmetric) or GMRES, preconditioned by GAMG or BoomerAMG.
 
     The ``petsc`` backend of :class:`~polypore.solvers.linear.LinearSolver`. On N ranks, ``solve``
@@ -556,7 +558,7 @@ class PetscLinearSolver:
 
     def __post_init__(self):
         if self.amg not in AMG_KINDS:
-            raise InputError(f"{FIELD}.amg", f"unknown AMG {self.amg!r}; allowed: {', '.join(AMG_KINDS)}")
+            raise InputError("amg", f"unknown AMG {self.amg!r}; allowed: {', '.join(AMG_KINDS)}")
         B = self.near_nullspace
         if self.block_size is None:
             d = 3 if B is not None and B.shape[1] == 6 else 2 if B is not None and B.shape[1] == 3 else 1
@@ -572,8 +574,14 @@ class PetscLinearSolver:
         self._mat = self._key = None
         self.seconds = 0.0
 
+    backend = "petsc"
+
     @property
     def iterations(self) -> list[int]:
+        return self.driver.iterations
+
+    @property
+    def krylov_iterations(self) -> list[int]:
         return self.driver.iterations
 
     @property
@@ -592,6 +600,7 @@ class PetscLinearSolver:
             and np.array_equal(A.indices, self._key[2])
         if comm.getSize() > 1:            # the matrix is collective: rebuilt on every rank or none
             same = not comm.tompi4py().allreduce(not same, op=_mpi_max())
+        assert self.block_size is not None          # set by __post_init__
         self._mat = aij(A, comm, self.block_size, self._mat if same else None)
         if not same:
             self._key = (key, A.indptr, A.indices)

@@ -16,9 +16,8 @@ but holds only the blocks it applies. PCFIELDSPLIT extracts P's whole (u, p) blo
 (MatMatMult and MatAXPY into a new matrix at every Newton iteration), then copies S's rows of each
 inner split and its diagonal blocks: about five matrices of J's size besides J and P. Here PETSc holds
 J, S_uu, S_pp, S_pu and two small contact matrices; the product Bt (Cl̂⁻¹ Cû), nonzero near the
-fractures only, is the one PETSc product (it needs the contact rows of other ranks' faces). On C5
-at 46k cells on 2 ranks PETSc's own allocations fall from 225 to 153 MB per rank; at 127k cells the
-set-up scales 2.0× from 1 to 2 ranks instead of 1.3× (docs/parallel.md).
+fractures only, is the one PETSc product (it needs the contact rows of other ranks' faces). PETSc's own
+allocations per rank fall by about a third and the set-up scales better with ranks (docs/parallel.md).
 
 Every matrix keeps one nonzero pattern per Jacobian pattern (values refilled in place), so the
 AMG set-ups and the product reuse PETSc's structures. Option names are those of the fieldsplit
@@ -28,6 +27,8 @@ without multipliers), each under the solver's prefix.
 """
 
 from __future__ import annotations
+
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -164,7 +165,7 @@ class CondensedPreconditioner:
             self._q_pu = (qr >= po) & (qk == 0)
             q_uu = (qr[self._q_uu], self.fidx[qj[self._q_uu]])
             q_pu = (qr[self._q_pu], qj[self._q_pu].astype(np.int64))
-            self.Q = None
+            self.Q: Any = None          # petsc4py Mat
         sel = bid == 0
         self.Suu = _Block(rows[sel], self.fidx[R.indices[sel]], nu, int(totals[0]), [q_uu], [q_uu])
         if self.has_p:

@@ -37,9 +37,9 @@ x_l = Cl̂⁻¹(r_l − Cû x_u).
 
 The displacement AMG is BoomerAMG (nodal coarsening): GAMG with the rigid-body near-null space is fast
 on plain elasticity but its set-up degenerates on these blocks, whose bubble dofs (a third of them on
-small meshes) have zero rows in the rigid-body modes (5.7 s instead of 0.05 s on 5k dofs; operator
-complexity 17), docs/parallel.md. Every option can be overridden through ``options`` (without the
-solver's prefix, ``contact_`` or ``poro_`` by default) or on PETSc's command line with it.
+small meshes) have zero rows in the rigid-body modes (docs/parallel.md). Every option can be
+overridden through ``options`` (without the solver's prefix, ``contact_`` or ``poro_`` by default)
+or on PETSc's command line with it.
 
 On N ranks (``mpiexec``, :mod:`polypore.parallel.layout`): each rank has only its rows of J (the models assemble
 them, :class:`~polypore.parallel.layout.OwnedRows`; a whole J is cut with the registered
@@ -54,8 +54,9 @@ from __future__ import annotations
 import hashlib
 import logging
 import time
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
@@ -63,9 +64,10 @@ import scipy.sparse as sp
 from ..core.errors import InputError
 from ..core.memory import trim_heap
 from .block_contact import ContactCondensation, _diag_blocks
-from ..parallel.layout import OwnedRows, _mpi, context, layout_for
-from .petsc import (AMG_KINDS, FIELD, KrylovDriver, PetscStats, ReusePolicy, aij, amg_defaults, collect_garbage,
+from ..parallel.layout import DofLayout, OwnedRows, _mpi, context, layout_for
+from .petsc import (AMG_KINDS, KrylovDriver, PetscStats, aij, amg_defaults, collect_garbage,
                     interleaved_block_size, krylov_defaults, near_nullspace, petsc, petsc_options, vec)
+from .interface import BlockOptions, SolverDefaults
 from .petsc_condensed import CondensedPreconditioner, csr_keys as _keys
 from ..core.timing import SPLIT
 
@@ -192,7 +194,7 @@ def lumped_coupling(R: sp.csr_matrix, blk: _RowBlocks) -> np.ndarray:
     (i, j, G_up,ji / A_jj) of its displacement rows to the owner of the pressure i (one
     Alltoallv; serially the triples stay here), which multiplies by its G_pu,ij. Works on R's CSR
     arrays and the entries of the two coupling blocks only: converting R's rows to coordinates
-    cost ≈ 180 MB per rank for a moment at every time step on C5 at 127k cells.
+    was a per-step memory peak (docs/parallel.md).
     """
     nu, po, row0, n = blk.nu, blk.po, blk.row0, blk.n
     lay = blk.layout
@@ -317,7 +319,7 @@ def _same_buffer(a: np.ndarray, b: np.ndarray) -> bool:
             and a.__array_interface__["data"][0] == b.__array_interface__["data"][0])
 
 
-class _FieldSplitBase:
+class _FieldSplitBase(SolverDefaults):
     """Shared machinery: PETSc matrices updated in place, the driver, the true-residual check.
 
     A Jacobian arrives whole (serial numbering; on N ranks each rank cuts out its rows with the
@@ -326,12 +328,22 @@ class _FieldSplitBase:
     for them only and they go to PETSc as they are.
     """
 
+    backend = "block-petsc"
+    # fields and methods of the dataclass subclasses
+    d: int
+    n_u: int
+    _po: Callable[[int], int]
+    structure: str
+    near_nullspace: np.ndarray | None
+    pressure_nullspace: np.ndarray | None
+    _build_pc: Callable[..., Any]
+
     def _init_common(self, prefix, defaults, options, reuse):
         if self.amg not in AMG_KINDS:
-            raise InputError(f"{FIELD}.amg", f"unknown AMG {self.amg!r}; allowed: {', '.join(AMG_KINDS)}")
+            raise InputError("amg", f"unknown AMG {self.amg!r}; allowed: {', '.join(AMG_KINDS)}")
         self.P = petsc()
         if self.P.COMM_WORLD.getSize() > 1 and context() is None:
-            raise InputError("solver.linear", "the PETSc block solvers run on N ranks in a distributed run "
+            raise InputError("backend", "the PETSc block solvers run on N ranks in a distributed run "
                              "only (polypore.parallel.layout.activate(); docs/parallel.md)")
         self._lay = None
         self.bs_u = interleaved_block_size(self.near_nullspace, self.d)
@@ -353,9 +365,14 @@ class _FieldSplitBase:
     def iterations(self, value):
         self.driver.iterations = value
 
+    @property
+    def krylov_iterations(self) -> list[int]:
+        return self.driver.iterations
+
     def _rows_of(self, J, nu: int, po: int):
         """(R, blocks): the rows this rank passes PETSc (csr, canonical; all rows serially) and where
         the fields lie in them (:class:`_RowBlocks`, rebuilt when the layout changes)."""
+        lay: DofLayout | None
         if isinstance(J, OwnedRows):
             lay = J.layout
             R = _canonical(J.take())
@@ -541,7 +558,7 @@ def _multiplier_schur(rest: str) -> dict[str, str]:
 
 
 @dataclass
-class PetscBlockContactSolver(_FieldSplitBase):
+class PetscBlockContactSolver(_FieldSplitBase, BlockOptions):
     """GMRES + PCFIELDSPLIT (Schur, multipliers eliminated, AMG on S) for the contact Jacobian.
 
     Parameters as :class:`~polypore.solvers.block_contact.BlockContactSolver`, and
@@ -556,14 +573,7 @@ class PetscBlockContactSolver(_FieldSplitBase):
     d: int
     condensation: ContactCondensation
     near_nullspace: np.ndarray | None = None
-    rtol: float = 1e-8
-    maxiter: int = 300
-    restart: int = 100
-    accept_rtol: float = 1e-6
-    amg: str = "hypre"
-    options: Mapping | None = None
     prefix: str = "contact_"
-    reuse: ReusePolicy = field(default_factory=ReusePolicy)
     seconds: float = 0.0
     layouts: dict | None = field(default=None, repr=False, compare=False)
 
@@ -626,7 +636,7 @@ class PetscBlockContactSolver(_FieldSplitBase):
 
 
 @dataclass
-class PetscBlockPoroSolver(_FieldSplitBase):
+class PetscBlockPoroSolver(_FieldSplitBase, BlockOptions):
     """GMRES + nested PCFIELDSPLIT for the coupled step Jacobian [u, l, p] (module docstring).
 
     Parameters as :class:`~polypore.solvers.block_contact.BlockPoroSolver`, and
@@ -642,21 +652,14 @@ class PetscBlockPoroSolver(_FieldSplitBase):
     condensation: ContactCondensation
     near_nullspace: np.ndarray | None = None
     pressure_nullspace: np.ndarray | None = None
-    pressure: str = "auto"
-    rtol: float = 1e-8
-    maxiter: int = 400
-    restart: int = 100
-    accept_rtol: float = 1e-6
-    amg: str = "hypre"
-    options: Mapping | None = None
     prefix: str = "poro_"
-    reuse: ReusePolicy = field(default_factory=ReusePolicy)
+    maxiter: int = field(default=400, kw_only=True)
     seconds: float = 0.0
     layouts: dict | None = field(default=None, repr=False, compare=False)
 
     def __post_init__(self):
         if self.pressure not in PRESSURE_SOLVERS:
-            raise InputError("solver.pressure", f"unknown pressure solver {self.pressure!r}; allowed: "
+            raise InputError("pressure", f"unknown pressure solver {self.pressure!r}; allowed: "
                              f"{', '.join(PRESSURE_SOLVERS)}")
         m = "fieldsplit_m_" if self.n_l else ""
         u, p = m + "fieldsplit_u_", m + "fieldsplit_p_"
@@ -678,6 +681,10 @@ class PetscBlockPoroSolver(_FieldSplitBase):
         self._fkey = None
         self._lump = None
         self.pressure_builds = 0
+
+    def set_pressure_nullspace(self, b) -> None:
+        """The near-null space of the pressure block for the coming systems (``pressure_nullspace``)."""
+        self.pressure_nullspace = b
 
     def _build_pc(self, nu, nl, po, n):
         pc = self.driver.ksp.getPC()

@@ -18,15 +18,12 @@ builds, from the matrix alone and two masks the caller supplies,
   (the fracture subsystem: its size grows with the fault area, not the volume) before and after
   the coarse correction. Point Gauss–Seidel (``smoother="gauss-seidel"``, the earlier choice)
   smooths the faces of a flat cell, coupled to each other far more than to anything else, one at
-  a time: on the first Newton system of a day on the weak-scaling grids the coupled GMRES needed
-  62 / 115 / 170 iterations at 10⁴ / 3·10⁴ / 10⁵ cells with it, 52 / 44 / 55 with the cell
-  blocks (an exact solve of the same pressure operator: 44 and 32 at the first two sizes).
+  a time, and the coupled GMRES iterations then grow with the grid (docs/choices.md).
 
 One application is the symmetric V-cycle pre-smooth → block → coarse (one AMG V-cycle) →
 block → post-smooth (colours in reverse), an SPD preconditioner for an SPD M (or −M for a
-negative definite one). Measured on emerald-injection's pressure block (31,044 unknowns), with
-point Gauss–Seidel: CG to 1e-8 in 30 iterations where smoothed aggregation on the whole block
-does not converge (docs/iterative_cornerpoint.md).
+negative definite one). On emerald-injection's pressure block it makes CG converge where
+smoothed aggregation on the whole block does not (docs/iterative_cornerpoint.md).
 """
 
 from __future__ import annotations
@@ -95,7 +92,7 @@ class CellBlocks:
         self.color = color
         self.n_colors = int(color.max()) + 1 if cell.size else 0
         nf = np.diff(F.indptr)
-        self.groups = [[] for _ in range(self.n_colors)]    # per colour: (blocks (nb, m), inverses)
+        self.groups: list[list[tuple]] = [[] for _ in range(self.n_colors)]    # per colour: (blocks (nb, m), inverses)
         for m in np.unique(nf):
             sel = nf == m
             cells = np.flatnonzero(sel)
@@ -107,8 +104,8 @@ class CellBlocks:
             for c in np.unique(color[cells]):
                 i = color[cells] == c
                 self.groups[c].append((blk[i], inv[i]))
-        # per colour, the rows of K its blocks need (1.6 × K's entries over all colours on
-        # emerald's pressure block; a full K @ x per colour made the sweep 3 × slower)
+        # per colour, the rows of K its blocks need (a full K @ x per colour makes the sweep several
+        # times slower, docs/iterative_cornerpoint.md)
         self.rows = []
         for c in range(self.n_colors):
             u = np.unique(np.concatenate([blk.ravel() for blk, _ in self.groups[c]]))
@@ -140,10 +137,8 @@ class TwoLevelPressure:
     direct_coarse : coarse spaces up to this size are factorised (SuperLU) instead of AMG
     coarse_amg : "classical" (Ruge–Stüben, the default) or "aggregation" (smoothed aggregation,
         the earlier choice) for coarse spaces above ``direct_coarse``. On the layered weak-scaling
-        grids (permeability contrast 10⁶, PERMZ a tenth) smoothed aggregation's V-cycle is a poor
-        solve of the cell operator: the pressure block alone took 39 / 57 GMRES iterations at
-        3·10⁴ / 10⁵ cells with it, 21 / 28 with classical AMG (21 with an exact coarse solve at
-        3·10⁴), whose set-up is also cheaper (docs/iterative_cornerpoint.md, eighth session)
+        grids smoothed aggregation's V-cycle is a poor solve of the cell operator, and classical
+        AMG's set-up is also cheaper (docs/choices.md; docs/iterative_cornerpoint.md, eighth session)
     smoother : "cells" (`CellBlocks`, the default) or "gauss-seidel" (point, on all unknowns);
         unknowns that no cell block covers are smoothed by point Gauss–Seidel as well
     colours : the ``colours`` of an earlier instance on the same pattern of M and the same masks

@@ -103,12 +103,12 @@ def test_discarded_branches_and_truth_values():
 
 
 @pytest.mark.parametrize("params,extra,text,field,msg", [
-    ({"x": 1.0}, (), "2*y", "parameters.x", "coordinate/time variable"),
-    ({"t": 1.0}, (), "2", "parameters.t", "coordinate/time variable"),
-    ({"sin": 1.0}, (), "2", "parameters.sin", "a function"),
-    ({"pi": 3.0}, (), "2*pi", "parameters.pi", "a constant"),
-    ({"D": 1.0}, ("D",), "0.5 + D", "parameters.D", "a variable of contact.friction"),
-    ({"rate-1": 1.0}, (), "1", "parameters.rate-1", "cannot be used in an expression"),
+    ({"x": 1.0}, (), "2*y", "params.x", "coordinate/time variable"),
+    ({"t": 1.0}, (), "2", "params.t", "coordinate/time variable"),
+    ({"sin": 1.0}, (), "2", "params.sin", "a function"),
+    ({"pi": 3.0}, (), "2*pi", "params.pi", "a constant"),
+    ({"D": 1.0}, ("D",), "0.5 + D", "params.D", "a variable of contact.friction"),
+    ({"rate-1": 1.0}, (), "1", "params.rate-1", "cannot be used in an expression"),
 ])
 def test_parameter_names_that_shadow_are_rejected(params, extra, text, field, msg):
     with pytest.raises(InputError, match=msg) as exc:

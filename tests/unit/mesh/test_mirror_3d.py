@@ -102,27 +102,27 @@ def test_case_file_option_and_input_checks():
     (prism,) = mirror_regions("fractures", fm.network.specs, [0, 0, 0], [1, 1, 1], fracture_size=0.12)
     _assert_mirrored(fm.mesh, prism)
     box = ([0, 0, 0], [1, 1, 1])
-    with pytest.raises(InputError, match=r"mesh.mirror.*\"tips\" is available for 2D meshes only"):
+    with pytest.raises(InputError, match=r"^mirror:.*\"tips\" is available for 2D meshes only"):
         simplicial_mesh(*box, [CUBE_FAULT], 0.5, mirror="tips")
     # a fracture reaching the boundary: no room for the prism
     edge = FractureSpec("edge", np.array([[0.0, 0.3, 0.3], [0.8, 0.3, 0.3], [0.8, 0.7, 0.7], [0.0, 0.7, 0.7]]))
-    with pytest.raises(InputError, match="mesh.mirror.*'edge' cannot fit"):
+    with pytest.raises(InputError, match="^mirror:.*'edge' cannot fit"):
         simplicial_mesh(*box, [edge], 0.5, fracture_size=0.1, mirror="fractures")
     # a second fault parallel to the first, 0.1 m away: it cuts the first's prism
     near = FractureSpec("near", CUBE_FAULT.vertices + [0, 0.1, 0])
-    with pytest.raises(InputError, match="mesh.mirror.*fracture 'F' meets 'near'"):
+    with pytest.raises(InputError, match="^mirror:.*fracture 'F' meets 'near'"):
         simplicial_mesh(*box, [CUBE_FAULT, near], 0.5, fracture_size=0.05, mirror="fractures")
     # two small faults side by side in one plane: clear of each other, but their prisms overlap
     a = FractureSpec("a", np.array([[0.2, 0.4, 0.5], [0.45, 0.4, 0.5], [0.45, 0.6, 0.5], [0.2, 0.6, 0.5]]))
     b = FractureSpec("b", a.vertices + [0.35, 0, 0])  # prisms (margins 0.0625 m) overlap on 0.4875 < x < 0.5125
-    with pytest.raises(InputError, match="mesh.mirror.*prisms around the fracture 'a' and the fracture 'b' overlap"):
+    with pytest.raises(InputError, match="^mirror:.*prisms around the fracture 'a' and the fracture 'b' overlap"):
         simplicial_mesh(*box, [a, b], 0.5, fracture_size=0.05, mirror="fractures")
     # a region interface through the prism (x up to 0.8), not through the fracture (x up to 0.7)
     itf = FractureSpec("x=0.75", np.array([[0.75, 0, 0], [0.75, 1, 0], [0.75, 1, 1], [0.75, 0, 1]], float))
     small = FractureSpec("s", np.array([[0.3, 0.4, 0.4], [0.7, 0.4, 0.4], [0.7, 0.6, 0.6], [0.3, 0.6, 0.6]]))
-    with pytest.raises(InputError, match="mesh.mirror.*'s' meets 'x=0.75'"):
+    with pytest.raises(InputError, match="^mirror:.*'s' meets 'x=0.75'"):
         simplicial_mesh(*box, [small], 0.5, fracture_size=0.05, mirror="fractures", interfaces=[itf])
-    with pytest.raises(InputError, match="mesh.mirror.*at least one fracture"):
+    with pytest.raises(InputError, match="^mirror:.*at least one fracture"):
         simplicial_mesh(*box, [], 0.5, mirror="fractures")
 
 

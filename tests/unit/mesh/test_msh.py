@@ -114,7 +114,7 @@ def test_read_2d_default_region_and_mixed_group(tmp_path):
     assert np.all(mesh.geometry.cell_centroid[right, 0] > 0.5)
     with pytest.raises(InputError, match="'frac'.*mixes .* boundary and .* interior") as exc:
         read_msh(str(write_2d(tmp_path / "m.msh", mixed=True)))
-    assert exc.value.field == "mesh.file"
+    assert exc.value.field == "path"
 
 
 @pytest.mark.parametrize("version", [2.2, 4.1])
@@ -193,19 +193,19 @@ def test_read_hexahedra_msh22_by_hand(tmp_path, exact_geometry):
 def test_errors(tmp_path):
     with pytest.raises(InputError, match="does not exist") as exc:
         read_msh(str(tmp_path / "absent.msh"))
-    assert exc.value.field == "mesh.file"
+    assert exc.value.field == "path"
     bad = tmp_path / "bad.msh"
     bad.write_text("Point(1) = {0, 0, 0};\n")
     with pytest.raises(InputError, match="not a Gmsh mesh file") as exc:
         read_msh(str(bad))
-    assert exc.value.field == "mesh.file"
+    assert exc.value.field == "path"
     # a valid header with a truncated body
     good = write_2d(tmp_path / "good.msh").read_text()
     cut = tmp_path / "cut.msh"
     cut.write_text(good[: len(good) // 2])
     with pytest.raises(InputError) as exc:
         read_msh(str(cut))
-    assert exc.value.field == "mesh.file"
+    assert exc.value.field == "path"
     # only lines: no cells
     lines = tmp_path / "lines.msh"
     lines.write_text(HEX_MSH.replace("4\n1 5 2 2 1 1 2 5 4 7 8 11 10\n2 5 2 2 1 2 3 6 5 8 9 12 11\n3 3 2 1 5 2 5 11 8\n"
@@ -312,7 +312,7 @@ def test_file_that_crashes_gmsh_is_an_input_error(tmp_path):
         bad.write_text("\n".join(lines))
         with pytest.raises(InputError, match=r"gmsh crashed on it \(SIGSEGV\); the file is malformed") as exc:
             read_msh(str(bad))
-        assert exc.value.field == "mesh.file"
+        assert exc.value.field == "path"
 
 
 def test_reading_after_a_superlu_factorisation_is_quiet(tmp_path, capfd):
@@ -355,4 +355,4 @@ def test_corrupted_number_is_refused(tmp_path, version, bad):
     with pytest.raises(InputError, match=rf"line {text[:a].count(chr(10)) + i + 1}: '{re.escape(bad)}' in \$Nodes "
                        "is not a number") as exc:
         read_msh(str(tmp_path / "bad.msh"))
-    assert exc.value.field == "mesh.file"
+    assert exc.value.field == "path"

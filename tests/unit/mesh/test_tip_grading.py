@@ -114,7 +114,7 @@ def test_tip_grading_input_check():
     from polypore.core.errors import InputError
 
     for bad in (0.0, -0.5, 1.5, "0.75"):
-        with pytest.raises(InputError, match="mesh.tip_grading"):
+        with pytest.raises(InputError, match="^tip_grading:"):
             simplicial_mesh([0, 0, 0], [1, 1, 1], [_square("F", 0.5)], 0.3, fracture_size=0.08, tip_size=0.02,
                             tip_grading=bad)
 

@@ -7,6 +7,7 @@ from polypore.core.errors import InputError, RunError
 from polypore.runs.march import march
 from polypore.setup.casefile import CaseFile
 from polypore.setup.schedule import TimeSchedule, parse_schedule
+from polypore.solvers.interface import SolverDefaults
 
 
 def test_times_hit_output_times_and_end():
@@ -73,7 +74,9 @@ def test_newton_reports_the_iterations_of_a_failed_attempt():
 
     from polypore.solvers.newton import Linearisation, NewtonOptions, semismooth_newton
 
-    class Flip:
+    class Flip(SolverDefaults):
+        backend = "test"
+
         def solve(self, J, b):
             return np.array([2.0])
 
@@ -139,7 +142,9 @@ def test_newton_gives_up_early_when_the_residual_stalls():
     from polypore.core.errors import RunError
     from polypore.solvers.newton import Linearisation, NewtonOptions, semismooth_newton
 
-    class Flip:
+    class Flip(SolverDefaults):
+        backend = "test"
+
         def solve(self, J, b):
             return np.array([2.0])                      # always overshoots: x alternates ±1
 
@@ -165,7 +170,9 @@ def test_newton_gives_up_when_the_line_search_crawls():
     from polypore.core.errors import RunError
     from polypore.solvers.newton import Linearisation, NewtonOptions, semismooth_newton
 
-    class Overshoot:
+    class Overshoot(SolverDefaults):
+        backend = "test"
+
         def solve(self, J, b):
             return np.array([-1000.0 * np.sign(self.x)])
 
@@ -194,7 +201,9 @@ def test_newton_accepts_the_round_off_floor_only_when_nothing_moves():
     from polypore.core.errors import RunError
     from polypore.solvers.newton import Linearisation, NewtonOptions, semismooth_newton
 
-    class Tiny:
+    class Tiny(SolverDefaults):
+        backend = "test"
+
         def __init__(self, step):
             self.step = step
 

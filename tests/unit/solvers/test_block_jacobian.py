@@ -16,6 +16,7 @@ from polypore.models.flow import FlowData, Pressure
 from polypore.models.mechanics import ContactMechanics
 from polypore.models.poromechanics import Poromechanics
 from polypore.solvers.block_jacobian import BlockJacobian, FreeSplit, abs_matvec, block_diag_csr
+from polypore.solvers.factory import SolverChoice
 from polypore.solvers.linear import LinearSolver
 
 
@@ -90,7 +91,7 @@ def _poro(solver, **kw):
 
 @pytest.fixture(scope="module")
 def poro_pair():
-    return _poro(LinearSolver("block-amg")), _poro(LinearSolver("superlu"))
+    return _poro(SolverChoice("block-amg")), _poro(LinearSolver("superlu"))
 
 
 def _dilatant_linearisations(Pb, Pa):
@@ -111,7 +112,7 @@ def test_coupled_blocks_equal_the_assembled_jacobian(poro_pair):
     """With dilatancy (the p × u block gets a second contribution) and slipping faces: the blocks
     the block solver receives are the assembled Jacobian's, entry for entry."""
     Pb, Pa = poro_pair
-    assert Pb.blockwise and not Pa.blockwise and Pb.pattern is None
+    assert Pb.blockwise and not Pa.blockwise and Pb.jacobian.pattern is None
     _, x0, xb, x, la, lb = _dilatant_linearisations(Pb, Pa)
     assert np.array_equal(x0, xb)
     assert np.any(la.active_set == SLIP)
@@ -128,7 +129,7 @@ def test_coupled_blocks_equal_the_assembled_jacobian(poro_pair):
 def test_implicit_conductivity_blocks_equal_the_assembled_jacobian():
     """Conductivities at the iterate's aperture (a third p × u contribution and a flow block that
     changes per iterate): the blocks equal the assembled Jacobian's, to round-off."""
-    Pb, Pa = (_poro(LinearSolver(k), conductivity_aperture="current") for k in ("block-amg", "superlu"))
+    Pb, Pa = (_poro(SolverChoice(k), conductivity_aperture="current") for k in ("block-amg", "superlu"))
     st, _, _, x, la, lb = _dilatant_linearisations(Pb, Pa)
     assert np.any(la.active_set == SLIP)
     assert np.array_equal(la.residual, lb.residual)
@@ -144,7 +145,7 @@ def test_implicit_conductivity_blocks_equal_the_assembled_jacobian():
 def test_contact_blocks_equal_the_assembled_jacobian():
     fm = FracturedMesh.build(_box(6), _fracture())
     md = sheared_mechanics(fm, 50.0, False)
-    Mb, Ma = ContactMechanics(fm, md, LinearSolver("block-amg")), ContactMechanics(fm, md, LinearSolver("superlu"))
+    Mb, Ma = ContactMechanics(fm, md, SolverChoice("block-amg")), ContactMechanics(fm, md, LinearSolver("superlu"))
     assert Mb.blockwise and Mb.pattern is None and not Ma.blockwise
     F, udir = Ma.load_vector(30.0), Ma.dirichlet_vector(30.0)
     st = Ma.solve(30.0, verbose=False)

@@ -133,10 +133,10 @@ def test_linear_step_with_an_iterative_solver_converges_in_one_newton_iteration(
     pytest.importorskip("pyamg")
     from test_newton_robustness import linear_case
 
-    from polypore.solvers.linear import LinearSolver
+    from polypore.solvers.factory import SolverChoice
 
     for k, inv_m, b in ((1e-22, 0.0, 1.0), (1e-15, 1e-11, 1.0), (1e-9, 1e-9, 0.5)):
-        P = linear_case(3, k, inv_m, b, solver=LinearSolver("block-amg"))
+        P = linear_case(3, k, inv_m, b, solver=SolverChoice("block-amg"))
         assert P.newton.forcing == "eisenstat-walker"
         st, info = P.step(P.initial_state(0.0), 10.0, energy=False)
         assert info.residual <= P.newton.tol and info.iterations <= 3, info.history
@@ -275,7 +275,7 @@ def test_flow_kinds_without_terms_are_not_weighted_beyond_the_floor():
     ctx, x0 = model.step_context(st, 86400.0, 86400.0)
     lin = model._linearise(x0, ctx)
     po = model.mech.free.size + model.mech.n_c * model.dim
-    kind = model._flow_kind
+    kind = model.unknowns.kind
     # the weight of a flow row is 1/(s_i √Σ_k): recover each kind's √Σ_k from it
     root = 1.0 / (lin.row_scale[po:] * ctx.pressure_scale[model.flow_free])
     assert np.any(lin.residual[po:][kind == 0] != 0)                # the well's source

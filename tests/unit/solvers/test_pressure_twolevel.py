@@ -23,7 +23,7 @@ def _pressure_block(overrides=()):
     nu = model.mech.free.size
     A, Gup, Gpu, F = J[:nu, :nu], J[:nu, po:], J[po:, :nu], J[po:, po:]
     lump = np.asarray((Gpu @ sp.diags(1.0 / A.diagonal())).multiply(Gup.T).sum(axis=1)).ravel()
-    k = model._flow_kind
+    k = model.unknowns.kind
     return sp.csr_matrix(F - sp.diags(lump)), 1.0 / ctx.pressure_scale[model.flow_free], np.isin(k, (0, 3)), np.isin(k, (2, 3, 4))
 
 

@@ -68,7 +68,7 @@ def order_cycles(group: np.ndarray, a: np.ndarray, b: np.ndarray, n_nodes: int) 
     pos = np.minimum(pos, k - 1)
     succ = order[pos]
     if np.any(start[succ] != g * n_nodes + b) or np.unique(start).size != k:
-        raise MeshError("mesh.cells", "a polygon's boundary is not a simple loop")
+        raise MeshError("cells", "a polygon's boundary is not a simple loop")
     ng = int(g.max()) + 1 if k else 0
     first = np.full(ng, k, dtype=np.int64)
     np.minimum.at(first, g, np.arange(k))
@@ -82,7 +82,7 @@ def order_cycles(group: np.ndarray, a: np.ndarray, b: np.ndarray, n_nodes: int) 
         dist = dist + dist[succ]
         succ = succ[succ]
     else:
-        raise MeshError("mesh.cells", "a polygon's boundary is not a single loop")
+        raise MeshError("cells", "a polygon's boundary is not a single loop")
     return np.lexsort((-dist, g))
 
 
@@ -181,7 +181,7 @@ def agglomerate(mesh: Mesh, keep_faces=(), *, rounds: int = 2, seed: int = 0) ->
     """
     rounds = int(rounds)
     if rounds < 0:
-        raise InputError("mesh.rounds", f"must be a non-negative integer, got {rounds}")
+        raise InputError("rounds", f"must be a non-negative integer, got {rounds}")
     keep = np.zeros(mesh.n_faces, bool)
     kf = np.asarray(keep_faces, dtype=np.int64).ravel()
     if kf.size and (kf.min() < 0 or kf.max() >= mesh.n_faces):

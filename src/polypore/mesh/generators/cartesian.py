@@ -21,9 +21,9 @@ def grid_coordinates(lo: float, hi: float, n: int, include=()) -> np.ndarray:
     max(1, round(n * length / (hi - lo))) uniform cells.
     """
     if not hi > lo:
-        raise InputError("mesh.domain", f"upper bound {hi} must exceed lower bound {lo}")
+        raise InputError("hi", f"upper bound {hi} must exceed lower bound {lo}")
     if int(n) < 1:
-        raise InputError("mesh.cells", f"need at least one cell per direction, got {n}")
+        raise InputError("n", f"need at least one cell per direction, got {n}")
     req = np.unique(np.concatenate([[lo, hi], np.asarray(list(include), float)]))
     req = req[(req >= lo) & (req <= hi)]
     pieces = []
@@ -45,10 +45,10 @@ def cartesian_mesh(axes, *, cell_region=None, region_names=None) -> Mesh:
     axes = [np.asarray(a, float) for a in axes]
     dim = len(axes)
     if dim not in (2, 3):
-        raise InputError("mesh.domain", f"a Cartesian mesh is 2D or 3D, got {dim} axes")
+        raise InputError("axes", f"a Cartesian mesh is 2D or 3D, got {dim} axes")
     for k, a in enumerate(axes):
         if a.ndim != 1 or a.size < 2 or np.any(np.diff(a) <= 0):
-            raise InputError("mesh.domain", f"axis {'xyz'[k]} coordinates must increase strictly")
+            raise InputError("axes", f"axis {'xyz'[k]} coordinates must increase strictly")
     shape = [a.size for a in axes]
     grids = np.meshgrid(*axes, indexing="ij")
     nodes = np.stack([g.ravel() for g in grids], axis=1)

@@ -142,7 +142,7 @@ class _Fracture:
             a, b, c = P[i - 1], P[i], P[(i + 1) % m]
             cross = (b[0] - a[0]) * (c[1] - b[1]) - (b[1] - a[1]) * (c[0] - b[0])
             if cross < -1e-9 * np.linalg.norm(b - a) * np.linalg.norm(c - b):
-                raise InputError(f"fractures.{spec.name}", "mesh.front = \"anisotropic\" needs convex fracture "
+                raise InputError(f"fracture {spec.name}", "mesh.front = \"anisotropic\" needs convex fracture "
                                  f"polygons; the corner {V[i].tolist()} is re-entrant")
             if cross > 1e-12 * np.linalg.norm(b - a) * np.linalg.norm(c - b):
                 keep.append(i)
@@ -246,7 +246,7 @@ def _core(gmsh, boundary, h):
     # put the boundary nodes first, in the given order
     idx = cKDTree(X).query(boundary)[1]
     if np.max(np.linalg.norm(X[idx] - boundary, axis=1)) > 1e-9 * float(np.ptp(boundary)):
-        raise MeshError("mesh", "gmsh moved the core polygon's boundary nodes")
+        raise MeshError("gmsh", "gmsh moved the core polygon's boundary nodes")
     rest = np.setdiff1d(np.arange(len(X)), idx)
     order = np.concatenate([idx, rest])
     new = np.empty(len(X), np.int64)
@@ -370,7 +370,7 @@ def _fill(lower, upper, X, surfaces, size, grading, seed, h_surface, distances, 
         _, enodes = gmsh.model.mesh.getElementsByType(4)
         T = np.asarray(enodes, np.int64).reshape(-1, 4)
     if T.size == 0:
-        raise MeshError("mesh", "gmsh produced no tetrahedra around the fracture slabs")
+        raise MeshError("gmsh", "gmsh produced no tetrahedra around the fracture slabs")
     log.debug("fill: %d nodes, %d tetrahedra (algorithm %d)", len(Y), len(T), algorithm)
     # the slabs' surface nodes are matched by position (gmsh may renumber), the others are new
     span = float(np.max(upper - lower))
@@ -388,7 +388,7 @@ def _fill(lower, upper, X, surfaces, size, grading, seed, h_surface, distances, 
     key = lambda F: (F[:, 0] * n + F[:, 1]) * n + F[:, 2]      # noqa: E731
     missing = int(np.sum(~np.isin(key(want), key(faces))))
     if missing:
-        raise MeshError("mesh", f"gmsh did not keep {missing} of the {len(want)} surface triangles of the "
+        raise MeshError("gmsh", f"gmsh did not keep {missing} of the {len(want)} surface triangles of the "
                         "fracture slabs when filling the box around them")
     return Y[~mine], T
 
@@ -430,29 +430,29 @@ def front_mesh(lower, upper, fractures, size: float, *, fracture_size: float | N
     lower = np.asarray(lower, float).ravel()
     upper = np.asarray(upper, float).ravel()
     if lower.size != 3 or upper.shape != lower.shape:
-        raise InputError("mesh.front", "\"anisotropic\" fronts are made for 3D boxes only; in 2D a crack front "
+        raise InputError("front_mesh", "\"anisotropic\" fronts are made for 3D boxes only; in 2D a crack front "
                          "is a point and the isotropic tip grading (mesh.tip_size) is already optimal")
     if np.any(upper <= lower):
-        raise InputError("mesh.upper", f"must exceed lower {lower.tolist()} in every direction, got {upper.tolist()}")
-    for key, v in (("mesh.size", size), ("mesh.fracture_size", fracture_size), ("mesh.tip_size", tip_size),
+        raise InputError("upper", f"must exceed lower {lower.tolist()} in every direction, got {upper.tolist()}")
+    for key, v in (("size", size), ("fracture_size", fracture_size), ("tip_size", tip_size),
                    ("front_radius", front_radius)):
         if v is not None and not (isinstance(v, (int, float)) and np.isfinite(v) and v > 0):
             raise InputError(key, f"must be a positive number (m), got {v}")
     if not (isinstance(tip_grading, (int, float)) and 0 < tip_grading <= 1):
-        raise InputError("mesh.tip_grading", f"must be an exponent in (0, 1], got {tip_grading}")
+        raise InputError("tip_grading", f"must be an exponent in (0, 1], got {tip_grading}")
     fsize = float(min(size, fracture_size or size))
     tip = float(tip_size if tip_size is not None else fsize / 40)
     tip = min(tip, fsize)
     if len(interfaces):
-        raise InputError("mesh.front", "\"anisotropic\" fronts do not make meshes conforming to region "
+        raise InputError("front_mesh", "\"anisotropic\" fronts do not make meshes conforming to region "
                          "boundaries ([[regions]] inside the box); use mesh.front = \"isotropic\"")
     if not fractures:
-        raise InputError("mesh.front", "\"anisotropic\" grades the mesh around fracture fronts, and the case has "
+        raise InputError("front_mesh", "\"anisotropic\" grades the mesh around fracture fronts, and the case has "
                          "no fractures; use mesh.front = \"isotropic\"")
     span = float(np.max(upper - lower))
     est = np.prod(upper - lower) / size ** 3
     if est > 5e7:
-        raise InputError("mesh.size", f"{size} m would give about {est:.3g} cells in the bulk alone; use a larger size")
+        raise InputError("size", f"{size} m would give about {est:.3g} cells in the bulk alone; use a larger size")
     t0 = time.perf_counter()
     frs = [_Fracture(s, lower, upper) for s in fractures]
     radii = []
@@ -469,7 +469,7 @@ def front_mesh(lower, upper, fractures, size: float, *, fracture_size: float | N
                 break
             rho *= 0.9
         if rho < 2 * tip:
-            raise InputError(f"fractures.{fr.name}", f"is too close to the box boundary for anisotropic fronts: a "
+            raise InputError(f"fracture {fr.name}", f"is too close to the box boundary for anisotropic fronts: a "
                              f"tube of radius {rho:.3g} m around its edges would not fit (need at least twice "
                              f"tip_size = {tip:.3g} m); move it inside or use mesh.front = \"isotropic\"")
         radii.append(rho)
@@ -479,7 +479,7 @@ def front_mesh(lower, upper, fractures, size: float, *, fracture_size: float | N
             Pa = frs[a].slab_corners(radii[a] * (1 + CLEARANCE))
             Pb = frs[b].slab_corners(radii[b] * (1 + CLEARANCE))
             if _hulls_overlap(Pa, Pb):
-                raise InputError("fractures", f"fractures {frs[a].name!r} and {frs[b].name!r} are too close for "
+                raise InputError("fracture", f"fractures {frs[a].name!r} and {frs[b].name!r} are too close for "
                                  "anisotropic fronts (their front tubes would overlap); the fractures of "
                                  "mesh.front = \"anisotropic\" must be apart, or use \"isotropic\"")
     nodes, tets, surfaces, hs = [], [], [], []
@@ -515,14 +515,14 @@ def front_mesh(lower, upper, fractures, size: float, *, fracture_size: float | N
             break
         problem = "gmsh left a flat tetrahedron next to a fracture slab"
     else:
-        raise MeshError("mesh", f"{problem} (seeds {seed} to {seed + FILL_ATTEMPTS - 1}); change mesh.size or "
+        raise MeshError("gmsh", f"{problem} (seeds {seed} to {seed + FILL_ATTEMPTS - 1}); change mesh.size or "
                         "mesh.fracture_size slightly, or use mesh.front = \"isotropic\"")
     X = np.concatenate([X, Y])
     T = np.concatenate([T, T2]).astype(INDEX)
     E = X[T[:, 1:]] - X[T[:, :1]]
     volume = float(np.abs(np.einsum("ki,ki->k", E[:, 0], np.cross(E[:, 1], E[:, 2]))).sum()) / 6
     if abs(volume - np.prod(upper - lower)) > 1e-9 * np.prod(upper - lower):
-        raise MeshError("mesh", f"the anisotropic-front mesh does not tile the box: its cells hold {volume:.9g} m³ "
+        raise MeshError("gmsh", f"the anisotropic-front mesh does not tile the box: its cells hold {volume:.9g} m³ "
                         f"of {np.prod(upper - lower):.9g}")
     used, inv = np.unique(T, return_inverse=True)
     mesh = mesh_from_cells(X[used], {"tetra": inv.reshape(T.shape).astype(INDEX)})

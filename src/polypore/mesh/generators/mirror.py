@@ -102,17 +102,17 @@ def mirror_regions(mode: str, fractures, lower, upper, interfaces=(), fracture_s
         another fracture or an interface.
     """
     if mode not in MODES:
-        raise InputError("mesh.mirror", f"unknown value {mode!r}; allowed: {', '.join(MODES)}")
+        raise InputError("mirror", f"unknown value {mode!r}; allowed: {', '.join(MODES)}")
     if mode == "none":
         return []
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     if lower.size == 3:
         if mode == "tips":
-            raise InputError("mesh.mirror", "\"tips\" is available for 2D meshes only; in 3D use \"fractures\" "
+            raise InputError("mirror", "\"tips\" is available for 2D meshes only; in 3D use \"fractures\" "
                              "(a mirrored prism around each planar fracture)")
         return prisms(fractures, lower, upper, interfaces, fracture_size)
     if not fractures:
-        raise InputError("mesh.mirror", "needs at least one fracture to mirror the mesh about")
+        raise InputError("mirror", "needs at least one fracture to mirror the mesh about")
     # (owner, segment number within it, name, a, b) for every fracture and interface segment
     segments = [(i, j, s.name, a, b) for i, s in enumerate(list(fractures) + list(interfaces))
                 for j, (a, b) in enumerate(zip(np.asarray(s.vertices, float)[:-1], np.asarray(s.vertices, float)[1:]))]
@@ -126,24 +126,24 @@ def _bands(fractures, lower, upper, segments):
     for i, s in enumerate(fractures):
         V = np.asarray(s.vertices, float)
         if V.shape[0] != 2:
-            raise InputError("mesh.mirror", f"fracture {s.name!r} has {V.shape[0] - 1} segments; \"fractures\" "
+            raise InputError("mirror", f"fracture {s.name!r} has {V.shape[0] - 1} segments; \"fractures\" "
                              "mirrors bands around straight fractures (two vertices) only; \"tips\" takes any")
         t, n = _frame(V[0], V[1])
         length = float(np.linalg.norm(V[1] - V[0]))
         r = _region(f"fracture {s.name!r}", V.mean(axis=0), t, n, (0.5 + BAND) * length, BAND * length)
         corners = np.vstack([r.upper, r.lower])
         if np.any(corners < lower) or np.any(corners > upper):
-            raise InputError("mesh.mirror", f"the mirror band around fracture {s.name!r} ({BAND:g} of its length "
+            raise InputError("mirror", f"the mirror band around fracture {s.name!r} ({BAND:g} of its length "
                              f"beyond its tips and to each side) leaves the domain {lower.tolist()}–"
                              f"{upper.tolist()}; use mirror = \"tips\" for fractures that end near the boundary")
         quad = np.vstack([r.lower[:2], r.upper[2:]])
         for owner, _, name, a, b in segments:
             if owner != i and _convex_overlap(np.array([a, b]), quad):
-                raise InputError("mesh.mirror", f"the mirror band around fracture {s.name!r} meets {name!r}; "
+                raise InputError("mirror", f"the mirror band around fracture {s.name!r} meets {name!r}; "
                                  "use mirror = \"tips\" for fractures this close")
         for other in regions:
             if _convex_overlap(quad, np.vstack([other.lower[:2], other.upper[2:]])):
-                raise InputError("mesh.mirror", f"the mirror bands around the {other.label} and the fracture "
+                raise InputError("mirror", f"the mirror bands around the {other.label} and the fracture "
                                  f"{s.name!r} overlap; use mirror = \"tips\" for fractures this close")
         regions.append(r)
     return regions
@@ -176,7 +176,7 @@ def _tips(fractures, lower, upper, segments, fracture_size):
                             fracture_size)
             regions.append(_region(label, end, t, n, a, a))
     if not regions:
-        raise InputError("mesh.mirror", "\"tips\" found no fracture tip inside the domain to mirror the mesh at")
+        raise InputError("mirror", "\"tips\" found no fracture tip inside the domain to mirror the mesh at")
     return regions
 
 
@@ -229,7 +229,7 @@ def set_mirror(gmsh, regions, children) -> list[tuple[int, int]]:
         up = [tag for d, tag in children[2 * k] if d == 2]
         lo = [tag for d, tag in children[2 * k + 1] if d == 2]
         if len(up) != 1 or len(lo) != 1:
-            raise InputError("mesh.mirror", f"the mirrored region around the {r.label} is cut by another "
+            raise InputError("mirror", f"the mirrored region around the {r.label} is cut by another "
                              "fracture or interface; move them apart")
         gmsh.model.mesh.setPeriodic(2, lo, up, r.affine.tolist())
     return []

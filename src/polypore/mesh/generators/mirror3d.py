@@ -133,7 +133,7 @@ def prisms(fractures, lower, upper, interfaces=(), fracture_size: float | None =
     """
     lower, upper = np.asarray(lower, float), np.asarray(upper, float)
     if not fractures:
-        raise InputError("mesh.mirror", "needs at least one fracture to mirror the mesh about")
+        raise InputError("mirror", "needs at least one fracture to mirror the mesh about")
     clear = CLEAR * float(fracture_size) if fracture_size is not None else 0.01 * float(np.max(upper - lower))
     out = []
     for s in fractures:
@@ -148,7 +148,7 @@ def prisms(fractures, lower, upper, interfaces=(), fracture_size: float | None =
         fit = _fit_margin(centre, frame, h, lower, upper, clear)
         m = min(want, fit)
         if m < clear * (1 - 1e-9):  # (rounding: a margin of exactly the clearance fits)
-            raise InputError("mesh.mirror", f"\"fractures\": the mirrored prism around fracture {s.name!r} cannot "
+            raise InputError("mirror", f"\"fractures\": the mirrored prism around fracture {s.name!r} cannot "
                              f"fit in the domain {lower.tolist()}–{upper.tolist()}: it needs a margin of at least "
                              f"{clear:.3g} m (half the fracture_size) around the fracture and as much clearance from "
                              f"the boundary, but only {max(fit, 0.0):.3g} m fits; \"fractures\" mirrors fractures "
@@ -173,13 +173,13 @@ def prisms(fractures, lower, upper, interfaces=(), fracture_size: float | None =
             E = np.roll(V, -1, axis=0) - V
             axes = np.vstack([p.frame, normal[None], np.cross(p.frame[:, None, :], E[None, :, :]).reshape(-1, 3)])
             if _overlap(p.corners(), V, axes):
-                raise InputError("mesh.mirror", f"the mirrored prism around {p.label} meets {name!r} (a fracture "
+                raise InputError("mirror", f"the mirrored prism around {p.label} meets {name!r} (a fracture "
                                  "or region interface); \"fractures\" needs each fracture's prism clear of the "
                                  "rest of the network (use mirror = \"none\" for fractures this close)")
         for q in out[:k]:
             axes = np.vstack([p.frame, q.frame, np.cross(p.frame[:, None, :], q.frame[None, :, :]).reshape(-1, 3)])
             if _overlap(p.corners(), q.corners(), axes):
-                raise InputError("mesh.mirror", f"the mirrored prisms around the {q.label} and the {p.label} "
+                raise InputError("mirror", f"the mirrored prisms around the {q.label} and the {p.label} "
                                  "overlap; move the fractures apart (or use mirror = \"none\")")
     return out
 
@@ -224,7 +224,7 @@ def set_mirror_3d(gmsh, regions, children) -> list[tuple[int, int]]:
     for k, r in enumerate(regions):
         up = [tag for d, tag in children[2 * k] if d == 3]
         lo = [tag for d, tag in children[2 * k + 1] if d == 3]
-        cut = InputError("mesh.mirror", f"the mirrored prism around the {r.label} is cut by another fracture or "
+        cut = InputError("mirror", f"the mirrored prism around the {r.label} is cut by another fracture or "
                          "interface; move them apart (or use mirror = \"none\")")
         if len(up) != 1 or len(lo) != 1:
             raise cut
@@ -305,7 +305,7 @@ def reflect_halves(gmsh, regions, pairs, tags, X, cells, etags):
         tol = 1e-9 * float(np.max(r.half))
         dist, j = cKDTree(X[b_lo]).query(r.reflect(X[b_up]))
         if b_up.size != b_lo.size or np.any(dist > tol) or np.unique(j).size != j.size:
-            raise MeshError("mesh.mirror", f"the boundary meshes of the two halves of the prism around the {r.label} "
+            raise MeshError("mirror", f"the boundary meshes of the two halves of the prism around the {r.label} "
                             f"are not mirror images ({b_up.size} and {b_lo.size} nodes, worst mismatch "
                             f"{dist.max(initial=0):.3g} m); gmsh did not honour the periodic surfaces")
         inner = np.setdiff1d(T, b_up)

@@ -139,7 +139,7 @@ def perturb(mesh: Mesh, amplitude: float, fractures=(), *, seed: int = 0) -> Mes
     """
     amplitude = float(amplitude)
     if not 0 <= amplitude < 1:
-        raise InputError("mesh.perturb", f"must be in [0, 1) (fraction of the local edge length), got {amplitude}")
+        raise InputError("amplitude", f"must be in [0, 1) (fraction of the local edge length), got {amplitude}")
     d = mesh.dim
     rng = np.random.default_rng(seed)
     # uniform in the unit ball, projected onto the allowed directions (never lengthens it)
@@ -151,7 +151,7 @@ def perturb(mesh: Mesh, amplitude: float, fractures=(), *, seed: int = 0) -> Mes
     h = mesh.geometry.cell_diameter.min()
     flipped = (before > 0) & ~(after > 1e-12 * h ** d) | (before < 0) & ~(after < -1e-12 * h ** d)
     if np.any(flipped):
-        raise MeshError("mesh.perturb", f"amplitude {amplitude} inverts {int(flipped.sum())} sub-cell(s) of the mesh "
+        raise MeshError("amplitude", f"amplitude {amplitude} inverts {int(flipped.sum())} sub-cell(s) of the mesh "
                         "(a node moved through a face); use a smaller perturbation")
     extra = extra_boundary(mesh)
     if d == 2:

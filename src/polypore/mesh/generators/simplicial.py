@@ -85,23 +85,23 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
     upper = np.asarray(upper, float).ravel()
     dim = lower.size
     if dim not in (2, 3) or upper.shape != lower.shape:
-        raise InputError("mesh.lower", f"lower/upper must both have 2 or 3 coordinates, got {lower.tolist()} "
+        raise InputError("lower", f"lower/upper must both have 2 or 3 coordinates, got {lower.tolist()} "
                          f"and {upper.tolist()}")
     if np.any(upper <= lower):
-        raise InputError("mesh.upper", f"must exceed lower {lower.tolist()} in every direction, got {upper.tolist()}")
+        raise InputError("upper", f"must exceed lower {lower.tolist()} in every direction, got {upper.tolist()}")
     if not (np.isfinite(size) and size > 0):
-        raise InputError("mesh.size", f"must be a positive number, got {size}")
+        raise InputError("size", f"must be a positive number, got {size}")
     fsize = float(size if fracture_size is None else fracture_size)
     if not (np.isfinite(fsize) and fsize > 0):
-        raise InputError("mesh.fracture_size", f"must be a positive number, got {fracture_size}")
+        raise InputError("fracture_size", f"must be a positive number, got {fracture_size}")
     if tip_size is not None:
         if not (isinstance(tip_size, (int, float)) and tip_size > 0):
-            raise InputError("mesh.tip_size", f"must be a positive number (m), got {tip_size}")
+            raise InputError("tip_size", f"must be a positive number (m), got {tip_size}")
     if not (isinstance(tip_grading, (int, float)) and 0 < tip_grading <= 1):
-        raise InputError("mesh.tip_grading", f"must be an exponent in (0, 1] (h ∝ r^γ at crack tips; 0.5 for P1, "
+        raise InputError("tip_grading", f"must be an exponent in (0, 1] (h ∝ r^γ at crack tips; 0.5 for P1, "
                          f"2/3 to 3/4 for quadratic displacements), got {tip_grading}")
     if not (isinstance(grading, (int, float)) and grading > 0):
-        raise InputError("mesh.grading", f"must be a positive number (size growth per unit distance), got {grading}")
+        raise InputError("grading", f"must be a positive number (size growth per unit distance), got {grading}")
     fsize = min(fsize, float(size))
     box = np.stack([lower, upper])
     fractures, interfaces = list(fractures), list(interfaces)
@@ -113,7 +113,7 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
     span = float(np.max(upper - lower))
     est = np.prod(upper - lower) / size ** dim
     if est > 5e7:
-        raise InputError("mesh.size", f"{size} m would give about {est:.3g} cells in the bulk alone; use a larger size")
+        raise InputError("size", f"{size} m would give about {est:.3g} cells in the bulk alone; use a larger size")
 
     t0 = time.perf_counter()
     opts = {
@@ -132,14 +132,14 @@ def simplicial_mesh(lower, upper, fractures=(), size: float = 0.1, *, fracture_s
         except (InputError, MeshError):
             raise
         except Exception as exc:
-            raise MeshError("mesh", f"gmsh could not mesh the domain with its {len(fractures)} fracture(s) and "
+            raise MeshError("gmsh", f"gmsh could not mesh the domain with its {len(fractures)} fracture(s) and "
                             f"{len(interfaces)} interface(s): {gmsh_last_error(gmsh, exc)}. Fractures that "
                             "nearly touch, overlap or meet at tiny angles are the usual cause; move them apart "
                             "or refine fracture_size") from None
     t_gmsh = time.perf_counter() - t0
     kind = "triangle" if dim == 2 else "tetra"
     if conn.shape[0] == 0:
-        raise MeshError("mesh", "gmsh produced no cells; check the domain and the sizes")
+        raise MeshError("gmsh", "gmsh produced no cells; check the domain and the sizes")
     mesh = mesh_from_cells(nodes, {kind: conn})
     log.info("gmsh: %d %s in %.2f s (%d nodes)", mesh.n_cells, "triangles" if dim == 2 else "tetrahedra",
              t_gmsh, mesh.n_nodes)

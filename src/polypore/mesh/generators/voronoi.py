@@ -30,7 +30,7 @@ def _spec_vertices(spec, dim):
     V = np.asarray(getattr(spec, "vertices", spec), float)
     name = getattr(spec, "name", "?")
     if V.ndim != 2 or V.shape[1] != dim or len(V) < dim:
-        raise InputError(f"fractures.{name}", f"vertices must be at least {dim} {dim}D points, got shape {V.shape}")
+        raise InputError(f"fracture {name}", f"vertices must be at least {dim} {dim}D points, got shape {V.shape}")
     return name, V
 
 
@@ -63,7 +63,7 @@ def axis_planes(lower, upper, fractures, tol: float) -> list[np.ndarray]:
             moving = np.abs(seg) > tol
             if np.any(moving.sum(1) != 1):
                 k = int(np.flatnonzero(moving.sum(1) != 1)[0])
-                raise MeshError("mesh.generator", f"fracture {name!r}: segment {V[k].tolist()}–{V[k + 1].tolist()} "
+                raise MeshError("voronoi_mesh", f"fracture {name!r}: segment {V[k].tolist()}–{V[k + 1].tolist()} "
                                 f"is not parallel to an axis; {hint}")
             for k in range(len(seg)):
                 j = int(np.argmax(moving[k]))             # direction of the segment
@@ -72,14 +72,14 @@ def axis_planes(lower, upper, fractures, tol: float) -> list[np.ndarray]:
             continue
         flat = np.ptp(V, axis=0) <= 1e-9 * span
         if not flat.any():
-            raise MeshError("mesh.generator", f"fracture {name!r} (vertices {V.tolist()}) is not perpendicular to "
+            raise MeshError("voronoi_mesh", f"fracture {name!r} (vertices {V.tolist()}) is not perpendicular to "
                             f"an axis; {hint}")
         k = int(np.argmax(flat))
         coords[k].append(V[0, k])
         edge = np.roll(V, -1, axis=0) - V
         moving = np.abs(edge) > 1e-9 * span
         if np.any(moving.sum(1) != 1):
-            raise MeshError("mesh.generator", f"fracture {name!r}: its polygon edges must be parallel to the axes "
+            raise MeshError("voronoi_mesh", f"fracture {name!r}: its polygon edges must be parallel to the axes "
                             f"(vertices {V.tolist()}); {hint}")
         for e in range(len(V)):
             j = int(np.argmax(moving[e]))
@@ -208,17 +208,17 @@ def voronoi_mesh(lower, upper, size: float, fractures=(), *, seed: int = 0, jitt
     lower, upper = np.asarray(lower, float).ravel(), np.asarray(upper, float).ravel()
     dim = lower.size
     if dim not in (2, 3) or upper.size != dim:
-        raise InputError("mesh.lower", f"lower and upper must both have 2 or 3 coordinates, got {lower.tolist()} "
+        raise InputError("lower", f"lower and upper must both have 2 or 3 coordinates, got {lower.tolist()} "
                          f"and {upper.tolist()}")
     if np.any(upper <= lower):
-        raise InputError("mesh.upper", f"must exceed lower {lower.tolist()} in every direction, got {upper.tolist()}")
+        raise InputError("upper", f"must exceed lower {lower.tolist()} in every direction, got {upper.tolist()}")
     size = float(size)
     if not size > 0:
-        raise InputError("mesh.size", f"must be positive, got {size}")
+        raise InputError("size", f"must be positive, got {size}")
     if np.prod((upper - lower) / size) > 5e7:
-        raise InputError("mesh.size", f"{size} gives about {np.prod((upper - lower) / size):.3g} cells; at most 5e7")
+        raise InputError("size", f"{size} gives about {np.prod((upper - lower) / size):.3g} cells; at most 5e7")
     if not 0 <= jitter <= 0.8:
-        raise InputError("mesh.jitter", f"must be in [0, 0.8], got {jitter}")
+        raise InputError("jitter", f"must be in [0, 0.8], got {jitter}")
     seeds, planes = voronoi_seeds(lower, upper, size, fractures, seed=seed, jitter=jitter)
     n = len(seeds)
     # ghosts: mirror images of the seeds near each wall, so real cells end exactly on the walls
@@ -239,7 +239,7 @@ def voronoi_mesh(lower, upper, size: float, fractures=(), *, seed: int = 0, jitt
     swap = rp[:, 0] >= n
     rp[swap] = rp[swap][:, ::-1]                              # p = rp[:, 0] is a real seed
     if np.any(ridges.values < 0):
-        raise MeshError("mesh.generator", "internal error: a Voronoi cell of a seed is unbounded")
+        raise MeshError("voronoi_mesh", "internal error: a Voronoi cell of a seed is unbounded")
 
     # merge (near-)coincident Voronoi vertices among those used, snap onto planes and walls
     used, vinv = np.unique(ridges.values, return_inverse=True)
@@ -307,5 +307,5 @@ def voronoi_mesh(lower, upper, size: float, fractures=(), *, seed: int = 0, jitt
     usedn, inv = np.unique(all_loops.values, return_inverse=True)
     all_loops = Ragged(all_loops.offsets, inv.astype(INDEX))
     if np.unique(owner).size != n:
-        raise MeshError("mesh.generator", "internal error: a Voronoi cell lost all its faces")
+        raise MeshError("voronoi_mesh", "internal error: a Voronoi cell lost all its faces")
     return mesh_from_polyhedra(V[usedn], all_loops, owner[order], oriented=True)
