@@ -161,6 +161,12 @@ def test_failed_transient_run_leaves_nothing_complete(tmp_path, cli):
                        "--set", "flow.aperture=1e-4*(1 - t/100) + 1e-9")
     assert code == 2 and "flow.aperture" in err, err
     assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".polypore-")) == ["failed.json"]
+    # a boundary value that is first evaluated during the march: the model names it boundary.xmin,
+    # the run translates it to the case-file key (setup/translate.py, RUN_FLOW)
+    code, _, err = cli("run", "darcy-dfm-2d", "--out", str(tmp_path / "fail2"), *SMALL["darcy-dfm-2d"],
+                       "--set", "time.end=200", "--set", "time.step=50", "--set", "flow.initial_pressure=1e5",
+                       "--set", "flow.boundary.xmin.pressure=1e5 + 1e5/(100 - t)")
+    assert code == 2 and "flow.boundary.xmin" in err and "boundary.xmin:" not in err.replace("flow.boundary", ""), err
 
 
 def test_injection_rate_through_a_boundary_part(tmp_path):

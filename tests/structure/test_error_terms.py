@@ -64,6 +64,37 @@ def test_lower_layers_raise_in_their_own_terms():
                      "and translate in setup/ (setup/translate.py):\n" + "\n".join(bad))
 
 
+def field_arguments(path: Path, pattern: re.Pattern) -> list[tuple[int, str]]:
+    """(line, text) of every string argument of a call that is a case-file key alone (a table name,
+    a dot, an identifier, no spaces: a field handed to a helper that raises, such as
+    ``_positive(x, "flow.viscosity")``), or a module-level FIELD constant set to one."""
+    out = []
+    for n in ast.walk(ast.parse(path.read_text(), str(path))):
+        args = []
+        if isinstance(n, ast.Call):
+            args = [*n.args, *(k.value for k in n.keywords)]
+        elif isinstance(n, ast.Assign) and any(isinstance(t, ast.Name) and t.id.isupper() for t in n.targets):
+            args = [n.value]
+        elif isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            args = [d for d in n.args.defaults + n.args.kw_defaults if d is not None]
+        for a in args:
+            text = _leading_text(a)
+            if text and " " not in text and pattern.match(text) and re.match(r"^[a-z_]+\.[a-z_{]", text):
+                out.append((getattr(a, "lineno", n.lineno), text))
+    return out
+
+
+def test_lower_layers_hand_no_case_keys_to_their_helpers():
+    """The fields the lower layers pass on (to ``evaluate``, ``_positive``, …) or keep as defaults
+    are their own names too: a run-time error is translated by the run (setup/translate.py,
+    RUN_FLOW …), which knows the case."""
+    pattern = re.compile(rf"^({'|'.join(sorted(tables(), key=len, reverse=True))})(\.|\[|$)")
+    bad = [f"{path.relative_to(SRC).as_posix()}:{line}: {text}"
+           for layer in LOWER for path in sorted((SRC / layer).rglob("*.py"))
+           for line, text in field_arguments(path, pattern)]
+    assert not bad, "case-file keys handed on by the lower layers:\n" + "\n".join(bad)
+
+
 @pytest.mark.parametrize("own, keys, expected", [
     ("tip_size", "MESH", "mesh.tip_size"),
     ("fracture F1.vertices", "MESH", "fractures.F1.vertices"),

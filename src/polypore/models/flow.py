@@ -175,7 +175,7 @@ def _positive(value, name: str, allow_inf=False) -> float:
     return v
 
 
-def permeability_tensor(value, n_cells: int, dim: int, name: str = "flow.permeability") -> np.ndarray:
+def permeability_tensor(value, n_cells: int, dim: int, name: str = "permeability") -> np.ndarray:
     """(n_cells, d, d) SPD tensors from a scalar, (d, d), (n_cells,) or (n_cells, d, d) value."""
     K = np.asarray(value, float)
     if K.ndim == 0:
@@ -234,11 +234,11 @@ class FlowModel:
         self.mesh = mesh = fmesh.mesh
         self.network = net = fmesh.network
         self.data = data
-        self.viscosity = _positive(data.viscosity, "flow.viscosity")
+        self.viscosity = _positive(data.viscosity, "viscosity")
         M = np.asarray(data.biot_modulus, float)
         self.biot_modulus: float | np.ndarray
         if M.ndim == 0:
-            self.biot_modulus = _positive(data.biot_modulus, "flow.biot_modulus", allow_inf=True)
+            self.biot_modulus = _positive(data.biot_modulus, "biot_modulus", allow_inf=True)
         elif M.shape == (mesh.n_cells,) and np.all(M > 0):
             self.biot_modulus = M                               # per cell (layered storage), Pa
         else:
@@ -251,12 +251,12 @@ class FlowModel:
         if not (cf >= 0 and np.isfinite(cf)):
             raise InputError("fracture_compressibility", f"must be a finite number ≥ 0 (1/Pa), got {cf!r}")
         self.permeability = permeability_tensor(data.permeability, mesh.n_cells, mesh.dim)
-        for a, nm in ((alpha, "flow.alpha"), (fracture_alpha, "flow.fracture_alpha")):
+        for a, nm in ((alpha, "alpha"), (fracture_alpha, "fracture_alpha")):
             if a is not None:
                 _positive(a, nm)
         self.normal_permeability = self._positive_array(
-            evaluate(data.normal_permeability, self._ff_points(), 0.0, "flow.normal_permeability"),
-            "flow.normal_permeability", "m²")
+            evaluate(data.normal_permeability, self._ff_points(), 0.0, "normal_permeability"),
+            "normal_permeability", "m²")
         self.aperture0 = self.aperture(0.0)
         self.cell_source = cell_source
         self.fracture_source = fracture_source
@@ -313,8 +313,8 @@ class FlowModel:
 
     def aperture(self, t: float) -> np.ndarray:
         """(n_ff,) d_f from ``data.aperture`` at time t, m; InputError unless > 0."""
-        return self._positive_array(evaluate(self.data.aperture, self._ff_points(), t, "flow.aperture"),
-                                    "flow.aperture", "m")
+        return self._positive_array(evaluate(self.data.aperture, self._ff_points(), t, "aperture"),
+                                    "aperture", "m")
 
     def _edge_points(self) -> np.ndarray:
         en = self.network.edge_nodes
@@ -331,7 +331,7 @@ class FlowModel:
         owner = np.full(mesh.n_faces, -1)
         conds: list = []
         for name, cond in boundary.items():
-            faces = self._group(name, f"flow.boundary.{name}")
+            faces = self._group(name, f"boundary.{name}")
             if not isinstance(cond, (Pressure, Flux)):
                 raise InputError(f"boundary.{name}", f"expected Pressure(value) or Flux(value), got {cond!r}")
             taken = faces[owner[faces] >= 0]
@@ -368,7 +368,7 @@ class FlowModel:
             if hit.any():
                 on_part[name] = np.flatnonzero(hit)
         for name, cond in fracture_boundary.items():
-            fld = f"flow.fracture_boundary.{name}"
+            fld = f"fracture_boundary.{name}"
             self._group(name, fld)
             if not isinstance(cond, (Pressure, Flux)):
                 raise InputError(fld, f"expected Pressure(value) or Flux(0) (no-flow), got {cond!r}")
@@ -412,7 +412,7 @@ class FlowModel:
         ids, vals = [], []
         qflux = np.zeros(self.mesh.n_faces)
         for name, cond, faces in self._face_conditions:
-            v = evaluate(cond.value, g.face_centroid[faces], t, f"flow.boundary.{name}")
+            v = evaluate(cond.value, g.face_centroid[faces], t, f"boundary.{name}")
             if isinstance(cond, Pressure):
                 ids.append(dofs.face[faces])
                 vals.append(v)
@@ -422,15 +422,15 @@ class FlowModel:
         for name, cond, edges in self._edge_conditions:
             if isinstance(cond, Pressure):
                 ids.append(dofs.edge[edges])
-                vals.append(evaluate(cond.value, pts[edges], t, f"flow.boundary.{name}"))
+                vals.append(evaluate(cond.value, pts[edges], t, f"boundary.{name}"))
         return (np.concatenate(ids) if ids else np.zeros(0, np.int64), np.concatenate(vals) if vals else np.zeros(0),
                 qflux)
 
     def sources(self, t: float):
         """Cell and fracture source volumes per second: |K| h_m (n_cells,), |σ| h_f (n_ff,), m³/s."""
         g = self.mesh.geometry
-        hm = evaluate(self.cell_source, g.cell_centroid, t, "flow.cell_source") * g.cell_volume
-        hf = evaluate(self.fracture_source, self._ff_points(), t, "flow.fracture_source") \
+        hm = evaluate(self.cell_source, g.cell_centroid, t, "cell_source") * g.cell_volume
+        hf = evaluate(self.fracture_source, self._ff_points(), t, "fracture_source") \
             * g.face_area[self.network.faces]
         return hm, hf
 
@@ -520,7 +520,7 @@ class FlowModel:
         Raises RunError (singular system) for a problem without any pressure condition.
         """
         ap = self.aperture(t) if aperture is None else self._positive_array(
-            np.asarray(aperture, float), "flow.aperture", "m")
+            np.asarray(aperture, float), "aperture", "m")
         hm, hf = self.sources(t)
         return self._solve(t, None, ap, hm, hf)
 
@@ -528,11 +528,11 @@ class FlowModel:
         """A state with all pressures from ``pressure`` (number or f(x, y, z, t)); zero fluxes."""
         g = self.mesh.geometry
         net = self.network
-        p_cell = evaluate(pressure, g.cell_centroid, t, "flow.initial_pressure")
-        face = evaluate(pressure, g.face_centroid, t, "flow.initial_pressure")
+        p_cell = evaluate(pressure, g.cell_centroid, t, "initial_pressure")
+        face = evaluate(pressure, g.face_centroid, t, "initial_pressure")
         pf = face[net.faces].copy()
         face[net.faces] = np.nan
-        edge = evaluate(pressure, self._edge_points(), t, "flow.initial_pressure")
+        edge = evaluate(pressure, self._edge_points(), t, "initial_pressure")
         z = np.zeros
         return FlowSolution(float(t), p_cell, face, np.stack([pf, pf], 1), pf, edge, self.aperture(t),
                             z(self.mesh.cell_faces.nnz), z((net.n_faces, 2)), z(self.fracture_cells.face_edges.nnz))
@@ -552,10 +552,10 @@ class FlowModel:
             (the poromechanics hook: −b |K| (div^K u^n − div^K u^{n−1})/Δt).
         fracture_rhs_extra : (n_ff,) added to the fracture balances' right-hand side, m³/s.
         """
-        dt = _positive(dt, "flow.dt")
+        dt = _positive(dt, "dt")
         t = old.time + dt
         new_ap = self.aperture(t) if aperture is None else self._positive_array(
-            np.asarray(aperture, float), "flow.aperture", "m")
+            np.asarray(aperture, float), "aperture", "m")
         prev_ap = np.asarray(old.aperture, float)
         g = self.mesh.geometry
         area = g.face_area[self.network.faces]

@@ -42,7 +42,7 @@ class Elastic:
         return cls(mu * (3 * lam + 2 * mu) / (lam + mu), lam / (2 * (lam + mu)))
 
 
-def check_elastic(E, nu, field: str = "material") -> None:
+def check_elastic(E, nu, field: str = "elastic") -> None:
     """InputError naming the field unless 0 < E < ∞ and −1 < ν < 1/2 (elementwise)."""
     E = np.asarray(E, float)
     nu = np.asarray(nu, float)
@@ -54,7 +54,7 @@ def check_elastic(E, nu, field: str = "material") -> None:
         raise InputError(f"{field}.nu", f"Poisson's ratio must lie in (−1, 0.5), got {float(bad[0])!r}")
 
 
-def lame(E: np.ndarray, nu: np.ndarray, field: str = "material") -> tuple[np.ndarray, np.ndarray]:
+def lame(E: np.ndarray, nu: np.ndarray, field: str = "elastic") -> tuple[np.ndarray, np.ndarray]:
     """(μ, λ_L) in Pa from E (Pa) and ν, elementwise; InputError naming ``field.E`` or
     ``field.nu`` unless E > 0 and −1 < ν < 1/2 (outside, λ_L or μ would be ≤ 0 or infinite)."""
     check_elastic(E, nu, field)

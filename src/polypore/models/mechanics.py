@@ -396,7 +396,7 @@ class ContactMechanics:
         comp_mask = np.zeros((self.space.n_point_slots, d), bool)
         self._dir_groups = []
         for bc in self.data.displacement:
-            faces = self._boundary_faces(bc.boundary, f"mechanics.boundary.{bc.boundary}")
+            faces = self._boundary_faces(bc.boundary, f"displacement.{bc.boundary}")
             comps = tuple(int(c) for c in bc.components)
             if not comps or any(c < 0 or c >= d for c in comps):
                 raise InputError(f"displacement.{bc.boundary}", f"components must be in 0..{d - 1}, got {comps}")
@@ -579,7 +579,7 @@ class ContactMechanics:
             f = np.asarray(data.body_force(xq, t), float).reshape(-1, d)
             F += ops.value.T @ (wq[:, None] * f)
         for bc in data.traction:
-            faces = self._boundary_faces(bc.boundary, f"mechanics.boundary.{bc.boundary}")
+            faces = self._boundary_faces(bc.boundary, f"traction.{bc.boundary}")
             if isinstance(self.space, DisplacementSpace):
                 gv = np.asarray(bc.value(g.face_centroid[faces], t), float).reshape(-1, d)
                 if bc.boundary not in self._face_means:

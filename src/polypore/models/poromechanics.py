@@ -882,7 +882,7 @@ class Poromechanics:
         energy terms of the step when ``energy``). Raises RunError if Newton fails.
         """
         t0 = time.perf_counter()
-        dt = _positive(dt, "time.dt")
+        dt = _positive(dt, "dt")
         t = old.time + dt if t_new is None else float(t_new)
         mech, d = self.mech, self.dim
         ctx, x0 = self.step_context(old, dt, t)

@@ -37,6 +37,7 @@ from ..setup.casefile import CaseFile, load_case
 from ..setup.flow import well_cells
 from ..setup.meshing import build_fractured_mesh
 from ..setup.poromechanics import monitor_points, poro_setup
+from ..setup.translate import RUN_POROMECHANICS, case_keys
 from .common import RunClock, corner_point_faults
 from .march import march
 from .recorder import OutputSeries, PoroRecorder
@@ -97,7 +98,8 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
         series = OutputSeries(stage)
         recorder.record(state)          # before the output: its VTU holds the onsets up to now
         recorder.output(series, 0, state)
-        state = CoupledMarch(run.model, run.schedule, recorder, series).run(state)
+        with case_keys(RUN_POROMECHANICS):      # errors of the march (time-dependent data, aperture laws, PETSc)
+            state = CoupledMarch(run.model, run.schedule, recorder, series).run(state)
         summary = write_results(run, recorder, series, state, clock)
     return summary
 

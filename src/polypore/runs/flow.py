@@ -31,6 +31,7 @@ from ..models.fracture_geometry import arc_length
 from ..setup.casefile import CaseFile
 from ..setup.flow import FlowSetup, flow_setup
 from ..setup.meshing import build_fractured_mesh
+from ..setup.translate import RUN_FLOW, case_keys
 from .common import RunClock, corner_point_faults
 from .recorder import OutputSeries
 
@@ -237,7 +238,8 @@ def run_flow(case: CaseFile, out: Path) -> dict:
         atomic_write_text(stage / "case.toml", case.to_toml())
         series = OutputSeries(stage)
         solve = _solve_steady if setup.steady else _march_transient
-        sol, bal, steps = solve(model, setup, series, s)
+        with case_keys(RUN_FLOW):       # errors of the solve (time-dependent data, PETSc options)
+            sol, bal, steps = solve(model, setup, series, s)
         series.write()
         if mesh.dim == 2:
             _plots_2d(stage, case, model, setup, sol, s)

@@ -27,6 +27,7 @@ from ..cases.reference import ReferenceSlip
 from ..setup.casefile import CaseFile
 from ..setup.mechanics import mechanics_setup
 from ..setup.meshing import build_fractured_mesh
+from ..setup.translate import RUN_MECHANICS, case_keys
 from .common import RunClock, corner_point_faults, unknowns
 from .recorder import OutputSeries
 
@@ -41,7 +42,8 @@ def solve_static(case: CaseFile):
     setup = mechanics_setup(case, fm)
     problem = setup.problem(fm)         # errors name the case-file keys (setup/translate.py)
     t2 = time.perf_counter()
-    st = problem.solve()
+    with case_keys(RUN_MECHANICS):      # errors of the solve (time-dependent data, PETSc options)
+        st = problem.solve()
     problem.release_solver()            # no solve follows (ContactMechanics.release_solver)
     t3 = time.perf_counter()
     errors = {}

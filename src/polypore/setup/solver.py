@@ -4,10 +4,7 @@
 from __future__ import annotations
 
 from ..solvers.factory import SolverChoice
-from .translate import case_keys
-
-# the solvers' own parameter names -> case-file keys
-SOLVER = {"backend": "solver.linear", "petsc_options": "solver.petsc"}
+from .translate import SOLVER, case_keys
 
 
 def solver_choice(linear: str, **kw) -> SolverChoice:

@@ -53,14 +53,25 @@ MESH = {**under("mesh", ("lower", "upper", "size", "fracture_size", "tip_size", 
                          "jitter", "rounds", "nodes", "faces", "cells")),
         "amplitude": "mesh.perturb", "front_mesh": "mesh.front", "gmsh": "mesh", "voronoi_mesh": "mesh.generator",
         "axes": "mesh.domain", "hi": "mesh.domain", "n": "mesh.cells", "cell_region": "mesh.regions",
-        "parts": "boundaries", "path": "mesh.file", "fracture": "fractures", "fracture ": "fractures."}
-CORNERPOINT = {"regions": "mesh.region_keyword"}           # process_grid(regions=)
+        "parts": "boundaries", "path": "mesh.file", "fracture": "fractures", "fracture ": "fractures.",
+        "refine": "mesh.refine"}
+CORNERPOINT = {"regions": "mesh.region_keyword", "refine": "mesh.refine"}     # process_grid(regions=), refine_grid
 _CONTACT = under("contact", ("law", "friction", "threshold", "dynamic_friction", "critical_slip", "beta",
                              "patch_ratio"))
 MECHANICS = {**under("mechanics", ("order", "bubble_stabilisation", "bubble_side", "nodal_stabilisation")),
-             **_CONTACT, "beta_scale": "contact.beta", "displacement": "mechanics.boundary", "params": "parameters"}
+             **_CONTACT, "beta_scale": "contact.beta", "displacement": "mechanics.boundary",
+             "traction": "mechanics.boundary", "elastic": "material", "params": "parameters"}
 FLOW = {**under("flow", ("biot_modulus", "biot_coefficient", "fracture_compressibility", "cell_point",
-                         "normal_transmissivity_law", "conductivity_law", "boundary", "fracture_boundary")),
-        "cells": "mesh.cells", "network": "fractures", "params": "parameters"}
+                         "normal_transmissivity_law", "conductivity_law", "boundary", "fracture_boundary",
+                         "viscosity", "alpha", "fracture_alpha", "normal_permeability", "aperture", "cell_source",
+                         "fracture_source", "initial_pressure", "permeability")),
+        "cells": "mesh.cells", "network": "fractures", "params": "parameters", "dt": "time.dt"}
 POROMECHANICS = {**MECHANICS, **FLOW, "predictor": "solver.predictor", "matrix_pressure": "mechanics.pressure",
                  **under("flow", ("dilatancy", "pressure_stabilisation"))}
+# the solvers' own parameter names (solvers/factory.py, solvers/petsc.py)
+SOLVER = {"backend": "solver.linear", "petsc_options": "solver.petsc"}
+# what a run raises after its set-up (values of time-dependent expressions, the aperture laws, PETSc
+# options PETSc did not use): the runs wrap their solve or march in these
+RUN_MECHANICS = {**MECHANICS, **SOLVER}
+RUN_FLOW = {**FLOW, **SOLVER}
+RUN_POROMECHANICS = {**POROMECHANICS, **SOLVER}

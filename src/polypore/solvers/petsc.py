@@ -36,7 +36,7 @@ from .interface import SolverDefaults
 
 log = logging.getLogger("polypore")
 
-FIELD = "solver.petsc"
+FIELD = "petsc_options"
 INSTALL = ("the PETSc backends need petsc4py and mpi4py, which polypore takes from Debian "
            "(apt-get install python3-petsc4py python3-mpi4py) in a venv with numpy<2: run `make test-mpi` "
            "once, then use .venv-mpi/bin/polypore (docs/parallel.md)")
@@ -438,7 +438,8 @@ class KrylovDriver:
         if not ok:
             raise RunError(f"the PETSc Krylov solver ({self.ksp.getType()}) did not reach rtol={self.rtol:g}: "
                            f"{its} iterations, converged reason {self.last_reason}, true relative residual "
-                           f"{res:.2e}; raise {FIELD}.ksp_max_it or choose another preconditioner (docs/parallel.md)")
+                           f"{res:.2e}; raise ksp_max_it ([solver.petsc] in a case file) or choose another "
+                           "preconditioner (docs/parallel.md)")
         return its
 
     def _krylov(self, b, x, residual):

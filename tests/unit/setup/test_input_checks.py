@@ -126,9 +126,9 @@ def test_boundary_and_biot_rules_accept_what_is_meaningful(tmp_path):
 
 # -- the Python API validates where data are built -------------------------------------------------
 def test_api_materials():
-    with pytest.raises(InputError, match=r"^material.nu: .*\(−1, 0.5\), got 0.7"):
+    with pytest.raises(InputError, match=r"^elastic.nu: .*\(−1, 0.5\), got 0.7"):
         lame(25e9, 0.7)
-    with pytest.raises(InputError, match=r"^material.E: .*positive.*got -1"):
+    with pytest.raises(InputError, match=r"^elastic.E: .*positive.*got -1"):
         lame(-1e9, 0.2)
     mu, lam = lame(np.array([1e9, 2e9]), 0.25)
     assert np.all(mu > 0) and np.all(lam > 0)

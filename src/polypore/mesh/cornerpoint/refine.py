@@ -30,7 +30,7 @@ import numpy as np
 from ...core.errors import InputError
 from .reader import CornerPointGrid
 
-FIELD = "mesh.refine"
+FIELD = "refine"
 MAX_CELLS = 2 ** 31 - 1      # refined cells (mesh indices are int32)
 
 
