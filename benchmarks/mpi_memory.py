@@ -219,7 +219,7 @@ def main(argv=None):
         cmd += ["--out", args.out]
     t0 = time.perf_counter()
     rc = cli.main(cmd)
-    from polypore.parallel.layout import context
+    from polypore.parallel.context import context
 
     ctx = context()
     model = held.get("model")

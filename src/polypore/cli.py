@@ -197,7 +197,7 @@ def _output(args, default_name: str):
     In a distributed run rank 0 writes the results; the other ranks, which compute the same
     replicated results, write into a temporary folder that is deleted (docs/parallel.md).
     """
-    from .parallel.layout import context
+    from .parallel.context import context
 
     out = Path(args.out) if args.out else Path("results") / default_name
     ctx = context()
@@ -316,7 +316,7 @@ def _time_split_lines(totals: dict) -> list[str]:
 
 def _rank_peaks() -> list[float] | None:
     """Peak resident memory of every rank (MB) on rank 0 of a distributed run; None otherwise."""
-    from .parallel.layout import context
+    from .parallel.context import context
 
     ctx = context()
     if ctx is None or ctx.size == 1:
@@ -329,7 +329,7 @@ def _rank_peaks() -> list[float] | None:
 def _abort_other_ranks() -> None:
     """A bug on one rank of a distributed run: print it and abort every rank (MPI_Abort) rather than
     leave the others waiting in a collective operation."""
-    from .parallel.layout import context
+    from .parallel.context import context
 
     ctx = context()
     if ctx is None or ctx.size == 1:
@@ -346,7 +346,7 @@ def _stop_every_rank(message: str, status: int) -> None:
     raises the same one (the same checks on the same broadcast data) and rank 0 reports it; when
     only some ranks raise it, the others would wait for them in a collective forever, so the
     rank prints it with its number and aborts every rank (MPI_Abort with ``status``)."""
-    from .parallel.layout import context
+    from .parallel.context import context
 
     ctx = context()
     if ctx is None or ctx.size == 1:
@@ -363,7 +363,7 @@ def _stop_every_rank(message: str, status: int) -> None:
 
 
 def _is_root() -> bool:
-    from .parallel.layout import context
+    from .parallel.context import context
 
     ctx = context()
     return ctx is None or ctx.root
@@ -503,7 +503,7 @@ def _start_distributed(args) -> bool:
     """Under mpiexec (docs/parallel.md): start the distributed mode; False (with a one-line
     message) when more than one rank was started without petsc4py/mpi4py. One rank without them
     runs serially."""
-    from .parallel.layout import activate, launched_ranks
+    from .parallel.context import activate, launched_ranks
 
     n = launched_ranks()
     if n < 1 or args.func in (cmd_cases, cmd_schema, cmd_plot):

@@ -72,7 +72,7 @@ ASSEMBLY = textwrap.dedent("""
     import json, sys
     import numpy as np, scipy.sparse as sp
     from mpi4py import MPI
-    from polypore.parallel import layout as dist
+    from polypore.parallel import context as dist
     from polypore.solvers.petsc_fieldsplit import _RowBlocks, lumped_coupling
     from polypore.setup.casefile import load_case
     from polypore.setup.meshing import build_fractured_mesh

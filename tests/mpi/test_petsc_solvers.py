@@ -142,13 +142,13 @@ def test_options_pass_through_and_scope():
 
 
 @pytest.mark.parametrize("options, field, text", [
-    ({"ksp_type": "cgg"}, "solver.petsc.ksp_type", "allowed: "),
-    ({"pc_gamg_type": "smooth"}, "solver.petsc.pc_gamg_type", "agg, geo, classical"),
-    ({"ksp_rtoll": 1e-3}, "solver.petsc.ksp_rtoll", "did not use"),
-    ({"pc_hypre_boomeramg_strong_threshold": 0.5}, "solver.petsc.pc_hypre_boomeramg_strong_threshold",
+    ({"ksp_type": "cgg"}, "petsc_options.ksp_type", "allowed: "),
+    ({"pc_gamg_type": "smooth"}, "petsc_options.pc_gamg_type", "agg, geo, classical"),
+    ({"ksp_rtoll": 1e-3}, "petsc_options.ksp_rtoll", "did not use"),
+    ({"pc_hypre_boomeramg_strong_threshold": 0.5}, "petsc_options.pc_hypre_boomeramg_strong_threshold",
      "did not use"),                                     # an option of a preconditioner not selected
-    ({"pc_gamg_threshold": [0.1]}, "solver.petsc.pc_gamg_threshold", "string, number or boolean"),
-    ({"ksp type": "cg"}, "solver.petsc.ksp type", "letters, digits and '_'"),
+    ({"pc_gamg_threshold": [0.1]}, "petsc_options.pc_gamg_threshold", "string, number or boolean"),
+    ({"ksp type": "cg"}, "petsc_options.ksp type", "letters, digits and '_'"),
 ])
 def test_bad_options_name_the_option(options, field, text):
     _petsc()
@@ -380,3 +380,15 @@ def test_block_petsc_runs_a_coupled_case_with_the_newton_history_of_block_amg(tm
     assert proc.returncode == 0, proc.stderr
     proc, _ = run("block-petsc", "--set", "solver.petsc.fieldsplit_m_fieldsplit_p_pc_gamg_threshhold=0.02")
     assert proc.returncode == 2 and "threshhold" in proc.stderr and "Traceback" not in proc.stderr
+
+
+def test_a_case_names_the_option_as_the_case_file_does(tmp_path, capsys):
+    """The solver raises in its own terms (``petsc_options.ksp_rtoll``); the run translates what
+    its solve raises to the case-file key (setup/translate.py, RUN_MECHANICS)."""
+    _petsc()
+    from polypore.cli import main
+
+    code = main(["run", "single-crack", "--out", str(tmp_path / "r"), "--set", "solver.linear=petsc",
+                 "--set", "solver.petsc.ksp_rtoll=1e-3"])
+    err = capsys.readouterr().err
+    assert code == 2 and "solver.petsc.ksp_rtoll" in err and "did not use" in err, err

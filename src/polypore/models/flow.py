@@ -30,7 +30,8 @@ import numpy as np
 from ..assembly.flow import FlowAssembler, FlowSystem
 from ..core.errors import InputError
 from ..discretisation.hfv import CELL_POINTS
-from ..parallel.layout import context, distribute, min_owner
+from ..parallel.layout import distribute, min_owner
+from ..parallel.context import context
 from ..solvers.factory import SolverChoice, SolverSource, build
 from ..core.timing import SPLIT
 

@@ -55,8 +55,8 @@ class CellOwnership:
 
 def cell_ownership(mesh) -> CellOwnership:
     """The ownership of ``mesh``'s cells on this rank: the run's partition under ``mpiexec``
-    (:meth:`.layout.Distributed.partition`), every cell owned when serial."""
-    from .layout import context
+    (:meth:`.context.Distributed.partition`), every cell owned when serial."""
+    from .context import context
 
     ctx = context()
     if ctx is None:

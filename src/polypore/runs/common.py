@@ -9,7 +9,7 @@ import time
 
 from ..mesh.cornerpoint import fault_report, fault_table
 from ..setup.meshing import cornerpoint_of
-from ..parallel.layout import context
+from ..parallel.context import context
 from ..core.timing import SPLIT, summary_split
 
 log = logging.getLogger("polypore")

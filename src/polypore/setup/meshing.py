@@ -180,7 +180,7 @@ def build_fractured_mesh(case: CaseFile) -> FracturedMesh:
     (mpiexec) rank 0 builds it and broadcasts it to the other ranks (docs/parallel.md: the mesh
     stays serial).
     """
-    from ..parallel.layout import context
+    from ..parallel.context import context
 
     ctx = context()
     with live.phase("meshing"):
@@ -291,7 +291,7 @@ def build_file(case: CaseFile, spec, t0: float) -> FracturedMesh:
     path = Path(spec.mesh.file)
     if not path.is_absolute():
         path = Path(spec.base_dir or ".") / path
-    from ..parallel.layout import context
+    from ..parallel.context import context
 
     mesh, groups_found = read_msh(str(path), isolate=context() is None)   # no fork under MPI
     dim = mesh.dim

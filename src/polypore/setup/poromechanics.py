@@ -70,7 +70,7 @@ def resolve_linear(linear: str, fm, order: int, pardiso: bool) -> tuple[str, str
     """
     if linear != "auto":
         return linear, "given"
-    from ..parallel.layout import context
+    from ..parallel.context import context
 
     direct = "pardiso" if pardiso else "superlu"
     if context() is not None:

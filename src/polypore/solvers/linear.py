@@ -67,7 +67,7 @@ def resolve_backend(backend: str, petsc_options=None) -> tuple[str, dict | None]
     InputError("backend") for an unknown backend or one whose optional extra is missing."""
     if backend not in BACKENDS:
         raise InputError("backend", f"unknown linear solver {backend!r}; allowed: {', '.join(BACKENDS)}")
-    from ..parallel.layout import context
+    from ..parallel.context import context
 
     if context() is not None:
         backend, petsc_options = distributed_backend(backend, petsc_options)

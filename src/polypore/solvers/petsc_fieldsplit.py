@@ -64,7 +64,8 @@ import scipy.sparse as sp
 from ..core.errors import InputError
 from ..core.memory import trim_heap
 from .block_contact import ContactCondensation, _diag_blocks
-from ..parallel.layout import DofLayout, OwnedRows, _mpi, context, layout_for
+from ..parallel.layout import DofLayout, OwnedRows, _mpi, layout_for
+from ..parallel.context import context
 from .petsc import (AMG_KINDS, KrylovDriver, PetscStats, aij, amg_defaults, collect_garbage,
                     interleaved_block_size, krylov_defaults, near_nullspace, petsc, petsc_options, vec)
 from .interface import BlockOptions, SolverDefaults
@@ -344,7 +345,7 @@ class _FieldSplitBase(SolverDefaults):
         self.P = petsc()
         if self.P.COMM_WORLD.getSize() > 1 and context() is None:
             raise InputError("backend", "the PETSc block solvers run on N ranks in a distributed run "
-                             "only (polypore.parallel.layout.activate(); docs/parallel.md)")
+                             "only (polypore.parallel.context.activate(); docs/parallel.md)")
         self._lay = None
         self.bs_u = interleaved_block_size(self.near_nullspace, self.d)
         self.driver = KrylovDriver(prefix, defaults, options, reuse, self.rtol, self.maxiter, self.accept_rtol,
