@@ -1,6 +1,6 @@
 """Rerun the validation cases on two versions of polypore and compare their results file by file.
 
-    python benchmarks/rerun_cases.py BASE_REV [--cases a,b,...] [--out DIR] [--table docs/FILE.md]
+    python benchmarks/rerun_cases.py BASE_REV [--cases a,b,...] [--set KEY=VALUE ...] [--out DIR] [--table FILE]
 
 BASE_REV (a git revision of this repository, e.g. the commit before a refactoring) is exported with
 ``git archive`` into ``DIR/base-src``; the working tree's ``src/`` is the other side. Every case
@@ -35,7 +35,7 @@ CASES = ("single-crack", "six-fractures-static", "coulomb-2d", "tresca-2d", "fri
          "darcy-dfm-2d", "darcy-manufactured-2d", "dfm-2d", "fault-injection", "displaced-fault",
          "cornerpoint-injection")
 # summary.json keys that hold timings, memory or the version: they differ between any two runs
-VOLATILE = ("seconds", "second", "memory", "_mb", "wall", "cpu", "version", "elapsed", "threads")
+VOLATILE = ("seconds", "second", "timings", "memory", "_mb", "wall", "cpu", "version", "elapsed", "threads")
 MARK = ".rerun_cases"
 
 
@@ -83,11 +83,12 @@ def compare(a: Path, b: Path) -> dict:
             "summary_rel": worst, "summary_key": where}
 
 
-def run(case: str, src: Path, out: Path) -> tuple[int, float]:
+def run(case: str, src: Path, out: Path, sets=()) -> tuple[int, float]:
     env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(src), os.environ.get("PYTHONPATH", "")])}
     t0 = time.perf_counter()
-    p = subprocess.run([sys.executable, "-m", "polypore.cli", "-q", "run", case, "--out", str(out), "--force"],
-                       env=env, capture_output=True, text=True)
+    overrides = [a for kv in sets for a in ("--set", kv)]
+    p = subprocess.run([sys.executable, "-m", "polypore.cli", "-q", "run", case, "--out", str(out), "--force",
+                        *overrides], env=env, capture_output=True, text=True)
     if p.returncode:
         print(p.stderr[-2000:], file=sys.stderr)
     return p.returncode, time.perf_counter() - t0
@@ -97,6 +98,8 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("base", help="git revision of the base version")
     ap.add_argument("--cases", default=",".join(CASES))
+    ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                    help="a case override for every case (e.g. solver.linear=block-amg)")
     ap.add_argument("--out", default=str(Path(tempfile.gettempdir()) / "rerun"))
     ap.add_argument("--table", help="write the Markdown table to this file")
     args = ap.parse_args(argv)
@@ -118,7 +121,7 @@ def main(argv=None) -> int:
     for case in args.cases.split(","):
         status, secs = {}, {}
         for side, src in sides.items():
-            status[side], secs[side] = run(case, src, out / side / case)
+            status[side], secs[side] = run(case, src, out / side / case, args.set)
         if any(status.values()):
             rows.append((case, "run failed", status, "", ""))
             print(f"{case:24s} run failed: {status}")
@@ -132,6 +135,8 @@ def main(argv=None) -> int:
         for p in c["differ"] + c["missing"]:
             print(f"{'':24s}   differs or missing: {p}")
     if args.table:
+        label = " ".join(args.set)
+        rows = [(f"{r[0]} ({label})" if label else r[0], *r[1:]) for r in rows]
         lines = [f"| case | result files (CSV, VTU, PVD) | summary.json numbers | s (base {rev}) | s (work) |",
                  "|---|---|---|---|---|"]
         lines += [f"| {r[0]} | {r[1]} | {r[2]} | {r[3]} | {r[4]} |" for r in rows]
