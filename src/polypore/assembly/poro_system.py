@@ -267,7 +267,6 @@ class CoupledJacobian:
 
     def __init__(self, mechanics_blocks, contact_entries, coupling, biot, dilatancy: DilatancyEntries,
                  implicit_rc, flow: FlowUnknowns, n_u: int, n_lambda: int, layout=None, blockwise: bool = False):
-        self.blockwise = blockwise
         self.layout = layout
         self.contact_entries = contact_entries
         npf = flow.free.size
@@ -303,6 +302,11 @@ class CoupledJacobian:
         del values, blocks, mechanics_blocks      # the (row, col) lists: int64 per contribution
         self.coupling = (pat.take(Block.COUPLING, gv), gc.astype(it))      # values (m^d), p column
         self.biot = (pat.take(Block.BIOT, tv), tr.astype(it))              # values (m^d), p row
+
+    @property
+    def blockwise(self) -> bool:
+        """The block solver's pressure blocks rather than one pattern."""
+        return self.blocks is not None
 
     def step_data(self, elastic_values, scale_free, coupling_sign: float, flow_values):
         """The Jacobian's data without the contact, dilatancy and implicit blocks (added per

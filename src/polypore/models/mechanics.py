@@ -782,11 +782,11 @@ class ContactMechanics:
         tr = np.trace(eps, axis1=1, axis2=2)
         return 2 * self.mu[:, None, None] * eps + (self.lam * tr)[:, None, None] * np.eye(self.dim)
 
-    def cell_displacement(self, st: MechanicsState) -> np.ndarray:
+    def cell_displacement(self, st: HasDisplacement) -> np.ndarray:
         """(n_cells, d) Π^K u at the cell centroid (= ū_K; order 2: the cell mean of u), m."""
         return self.ops.mean @ st.u
 
-    def node_displacement(self, st: MechanicsState) -> np.ndarray:
+    def node_displacement(self, st: HasDisplacement) -> np.ndarray:
         """(n_nodes, d) nodal displacement (average over the node's sides), m."""
         sides = self.fm.sides
         n = self.fm.mesh.n_nodes

@@ -59,8 +59,8 @@ from typing import Mapping
 import numpy as np
 import scipy.sparse as sp
 
-from ..assembly.poro_system import (CoupledJacobian, DilatancyEntries, FlowUnknowns, PressureStabilisation,
-                                    biot_coupling)
+from ..assembly.poro_system import (CELL, FACE, FRACTURE, FRACTURE_EDGE, N_KINDS, TRACE, CoupledJacobian,
+                                    DilatancyEntries, FlowUnknowns, PressureStabilisation, biot_coupling)
 from ..core.errors import InputError, RunError
 from ..core.memory import int32_indices, trim_heap
 from ..mesh import FracturedMesh
@@ -308,7 +308,6 @@ class Poromechanics:
         """G (n_dofs, n_flow) (:func:`~polypore.assembly.poro_system.biot_coupling`), b ∫_K div v on
         cells and −|σ| [[·]]·n⁺ on fracture pressures; its rows under mpiexec."""
         mech = self.mech
-        nc = self.fm.mesh.n_cells
         G = biot_coupling(mech.ops.D, mech.ops.qp_cell, mech.ops.qp_weight, self.biot, mech.jump_scalar,
                           mech.face_area, mech.normal, self.dofs.frac, self.dofs.n, mech.n_dofs, self.n_flow)
         # the constant parts of pressure_scale, from the whole G (before it is cut to rows)
@@ -321,7 +320,6 @@ class Poromechanics:
         self.G = RowBlock.of(G, mech.dof_layout)
         # on one process Gᵀ is G's transposed view (csc), not a copy
         self.GT = G.T if self.flow_layout is None else RowBlock.of(int32_indices(G.T.tocsr()), self.flow_layout)
-        self._nc = nc
 
     def _setup_stabilisation(self, delta):
         """Face pairs and weights of the pressure-jump stabilisation (:meth:`stabilisation_matrix`)."""
@@ -373,11 +371,11 @@ class Poromechanics:
         """The flow unknowns (every flow dof but the Dirichlet pressures, whose set does not depend
         on t) and the one structure of the step matrix Δt A_f + S_δ (:class:`FlowUnknowns`)."""
         ids, _, _ = self.flow.dirichlet(0.0)
-        Af = self.asm.full_matrix(np.ones(self._nc), np.ones(self.n_ff), np.ones(self.n_ff), np.zeros(self.n_ff))
+        nf = self.n_ff
+        Af = self.asm.full_matrix(np.ones(self.fm.mesh.n_cells), np.ones(nf), np.ones(nf), np.zeros(nf))
         self.unknowns = FlowUnknowns.build(ids, Af, self.stab.rc(), self.dofs, self.n_flow, self.flow_layout)
         self.flow_fixed, self.flow_free = self.unknowns.fixed, self.unknowns.free
         self.flow_free_index = self.unknowns.free_index
-        self._flow_kind = self.unknowns.kind
 
     def _setup_pattern(self):
         """The step Jacobian's structure, built once (:class:`~polypore.assembly.poro_system.CoupledJacobian`):
@@ -438,9 +436,10 @@ class Poromechanics:
         mechanics' blocks, and the two-level pressure preconditioner's coarse unknowns (cell and
         fracture-cell pressures) and the fracture subsystem its smoother solves exactly (fracture
         cells, fracture edges, traces); kinds as in block_counts."""
-        mech, k = self.mech, self._flow_kind
+        mech, k = self.mech, self.unknowns.kind
         return BlockProblem(mech.free.size, self.dim, mech.n_c * self.dim, mech.condensation(), mech.rigid_modes(),
-                            pressure_groups=(np.isin(k, (0, 3)), np.isin(k, (2, 3, 4))), coupled=True)
+                            pressure_groups=(np.isin(k, (CELL, FRACTURE)),
+                                             np.isin(k, (TRACE, FRACTURE, FRACTURE_EDGE))), coupled=True)
 
     def release_solver(self) -> None:
         """Free the linear solver's matrices and preconditioner set-ups (PETSc's, where it has any)
@@ -474,8 +473,8 @@ class Poromechanics:
         out: dict[str, float] = {"displacement_points": int(np.count_nonzero(mech.free < npt)),
                "displacement_bubbles": int(np.count_nonzero(mech.free >= npt)),
                "multipliers": int(mech.n_c * d),
-               "pressure_cells": int(k[0]), "pressure_faces": int(k[1]), "pressure_traces": int(k[2]),
-               "pressure_fractures": int(k[3]), "pressure_fracture_edges": int(k[4])}
+               "pressure_cells": int(k[CELL]), "pressure_faces": int(k[FACE]), "pressure_traces": int(k[TRACE]),
+               "pressure_fractures": int(k[FRACTURE]), "pressure_fracture_edges": int(k[FRACTURE_EDGE])}
         out["per_cell"] = round(sum(out.values()) / max(self.fm.mesh.n_cells, 1), 3)
         return out
 
@@ -752,8 +751,8 @@ class Poromechanics:
         # poromechanics.md, "Residual scaling"); net sums such as ‖A_f p‖ cancel (b = 0, or the
         # exchange of a fracture at the matrix's pressure) and left Newton stuck at ratios 1e-7 … 1
         kind = self.unknowns.kind
-        num = np.bincount(kind, Rf[ff] ** 2, minlength=5)
-        den = np.bincount(kind, terms[ff] ** 2, minlength=5)
+        num = np.bincount(kind, Rf[ff] ** 2, minlength=N_KINDS)
+        den = np.bincount(kind, terms[ff] ** 2, minlength=N_KINDS)
         den = floored_kind_scales(den, self.unknowns.kind_count)
         flow = float(np.sqrt(np.max(num / np.maximum(den, 1e-300)))) if ff.size else 0.0
         norms = {"equilibrium": float(np.linalg.norm(Ru[free]) / su), "flow": flow}

@@ -32,6 +32,7 @@ from ..io.monitor3d import collect, from_run_directory, tangential
 from ..io.plots import monitor_plots, poro_plots, time_unit
 from ..io.plots3d import write_3d_plots
 from ..io.results import staged_run_directory, write_json
+from ..models.contact import OPEN, SLIP, STICK
 from ..models.fracture_geometry import arc_length
 from ..setup.casefile import CaseFile, load_case
 from ..setup.flow import well_cells
@@ -129,7 +130,7 @@ def set_up(case: CaseFile) -> tuple[CoupledRun, object, PoroRecorder]:
     recorder = PoroRecorder(model, fm, s_arc, points, case_wells(case, mesh), p0, p_ref, state,
                             schedule.max_conductivity_growth)
     log.info("initial state at t = %g s: %d open, %d stick, %d slip faces (%.2f s)", schedule.start,
-             int(np.sum(state.state == 0)), int(np.sum(state.state == 1)), int(np.sum(state.state == 2)),
+             int(np.sum(state.state == OPEN)), int(np.sum(state.state == STICK)), int(np.sum(state.state == SLIP)),
              time.perf_counter() - t0)
     return CoupledRun(case, fm, model, schedule, ms, faults, points), state, recorder
 
@@ -217,7 +218,7 @@ def write_results(run: CoupledRun, recorder: PoroRecorder, series: OutputSeries,
         "case": run.case.name, "version": __version__, "model": "poromechanics",
         "mesh": {"dim": mesh.dim, "cells": mesh.n_cells, "faces": mesh.n_faces, "nodes": mesh.n_nodes,
                  "fracture_faces": net.n_faces, "multiplier_patches": model.mech.patches.summary(),
-                 "unknowns": int(model.mech.free.size + model.mech.n_c * model.dim + model.flow_free.size),
+                 "unknowns": int(model.n_unknowns),
                  "blocks": model.block_counts()},
         **({"faults": run.faults} if run.faults is not None else {}),
         "choices": run.solver_setup.choices,

@@ -18,7 +18,6 @@ from ..io.results import fracture_rows, write_fractures_csv
 from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu, write_pvd
 from ..models.contact import SLIP, STATE_NAMES
 from ..models.energy import check_energy
-from ..models.mechanics import MechanicsState
 
 log = logging.getLogger("polypore")
 # a step whose fracture conductivity grows more than this (aperture ×10 with the cubic law), on
@@ -175,9 +174,9 @@ class PoroRecorder:
         (eff, comps), (tot, _) = symmetric_tensor(eff), symmetric_tensor(tot)
         bulk, fractures = series.files()
         write_bulk_vtu(bulk, mesh, cell_data={
-            "pressure": p + self.p_ref, "overpressure": p - self.p0, "displacement": model.mech.cell_displacement(
-                _mstate(st)), "effective_stress": eff, "total_stress": tot},
-            point_data={"displacement": model.mech.node_displacement(_mstate(st))},  # for Warp By Vector
+            "pressure": p + self.p_ref, "overpressure": p - self.p0, "displacement": model.mech.cell_displacement(st),
+            "effective_stress": eff, "total_stress": tot},
+            point_data={"displacement": model.mech.node_displacement(st)},  # for Warp By Vector
             component_names={"effective_stress": comps, "total_stress": comps})
         write_fracture_vtu(fractures, self.fm, cell_data={
             "jump": fq["jump"], "jump_n": fq["jump_n"], "jump_t": fq["jump_t"], "lambda": st.lam,
@@ -231,6 +230,3 @@ class PoroRecorder:
                 "linear_iterations_failed": int(sum(sum(f.get("linear_iterations", ())) for s in steps
                                                     for f in s.get("failed_attempts", ())))}
 
-
-def _mstate(st):
-    return MechanicsState(st.u, st.lam, st.state, st.time)

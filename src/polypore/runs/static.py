@@ -19,7 +19,7 @@ from ..io.results import fracture_rows, staged_run_directory, write_json
 from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu
 from ..io.atomic import atomic_write_text
 from ..io.legend import write_legend
-from ..models.contact import STATE_NAMES
+from ..models.contact import OPEN, SLIP, STATE_NAMES, STICK
 from ..models.fracture_geometry import arc_length
 from ..cases.exact import PiecewiseSolution, SingleCrack, piecewise_errors
 from ..cases.penny_exact import PennyCrack
@@ -84,8 +84,8 @@ def run_static(case: CaseFile, out: Path, plots: bool = True) -> dict:
             **({"faults": faults} if faults is not None else {}),
             "choices": setup.choices,
             "steps": [{"time": 0.0, "newton_iterations": st.newton_iterations, "residual": st.residual,
-                       "open": int(np.sum(st.state == 0)), "stick": int(np.sum(st.state == 1)),
-                       "slip": int(np.sum(st.state == 2)), "seconds": timings["solve"], "history": st.history}],
+                       "open": int(np.sum(st.state == OPEN)), "stick": int(np.sum(st.state == STICK)),
+                       "slip": int(np.sum(st.state == SLIP)), "seconds": timings["solve"], "history": st.history}],
             "totals": {**clock.totals(setup.solver), "seconds_by_stage": timings},
         }
         if errors:

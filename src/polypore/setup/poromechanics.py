@@ -20,8 +20,7 @@ from .flow import flow_setup
 from .insitu import reference_state
 from .limits import machine_memory
 from .mechanics import mechanics_setup
-from .translate import POROMECHANICS, case_keys
-from .solver import SOLVER
+from .translate import POROMECHANICS, SOLVER, case_keys
 
 log = logging.getLogger("polypore")
 
