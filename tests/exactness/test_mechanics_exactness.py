@@ -180,6 +180,8 @@ def test_slip_weakening_radius_and_state():
     with pytest.raises(InputError, match="^dynamic_friction:"):
         friction_law("slip-weakening", 1, friction=0.6, critical_slip=1e-3)
     with pytest.raises(InputError, match="^law:"):
+        friction_law("rate-and-stat", 1)
+    with pytest.raises(InputError, match="^friction:"):
         friction_law("rate-and-state", 1)
 
 

@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.errors import InputError
-from .friction import FrictionLaw, Radius
+from .friction import FrictionLaw, Radius, RateLaw
 
 # the projection's states, the codes every module reads (outputs, plots, exact solutions)
 OPEN, STICK, SLIP = 0, 1, 2
@@ -99,13 +99,21 @@ def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.nda
     y_t = lam_t + beta[:, None] * s_t
     closed = y_n > 0
     fl = law.friction_law
-    rad: Radius = fl.radius(y_n, s_t, fl.initial_state(nf) if state is None else state, dt)
-    r = rad.value
+    fstate = fl.initial_state(nf) if state is None else state
     ny = np.linalg.norm(y_t, axis=1)
+    rad: Radius
+    if isinstance(fl, RateLaw):
+        # a rate law: r solved from the trial traction (rate_state.py), every closed patch slides
+        # (static solves: r = ∞, held); the reported state follows the slip rate
+        rad = fl.trial_radius(y_n, ny, fstate, dt, beta)
+    else:
+        rad = fl.radius(y_n, s_t, fstate, dt)
+    r = rad.value
     inside = (ny <= r) & (r > 0)                                  # the projection's value
     stick = (ny < (1.0 - STICK_SLIP_TIE) * r) & (r > 0)           # state and derivative (ties: slip)
     slip = ~stick
-    codes = np.where(~closed, OPEN, np.where(stick, STICK, SLIP)).astype(np.int8)
+    shown = ~(fl.stuck(rad.rate) | stick) if rad.rate is not None and isinstance(fl, RateLaw) else slip
+    codes = np.where(~closed, OPEN, np.where(shown, SLIP, STICK)).astype(np.int8)
 
     # P(y) and its derivative with respect to (λ, q): normal part
     Pn = np.where(closed, y_n, 0.0)
@@ -114,9 +122,18 @@ def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.nda
     # tangential part: y_t if stick, r ŷ if slip (r = 0 gives 0)
     safe = np.where(ny > 0, ny, 1.0)
     yhat = y_t / safe[:, None]
-    Pt_val = np.where(inside[:, None], y_t, r[:, None] * yhat)
-    fac = np.where(stick, 1.0, r / safe)                         # stick: identity on the tangent plane
-    M = fac[:, None, None] * np.where(stick[:, None, None], Pt, Pt - np.einsum("fi,fj->fij", yhat, yhat))
+    held = np.isinf(r)                   # a rate law in a static solve: every closed patch held
+    r_fin = np.where(held, 0.0, r)
+    Pt_val = np.where(inside[:, None], y_t, r_fin[:, None] * yhat)
+    fac = np.where(stick, 1.0, r_fin / safe)                     # stick: identity on the tangent plane
+    if rad.d_trial is not None:
+        # r/|y_τ| → ∂r/∂|y_τ| as |y_τ| → 0 (a rate law's r(0) = 0)
+        fac = np.where(stick | (ny > 0), fac, rad.d_trial)
+    yy = np.einsum("fi,fj->fij", yhat, yhat)
+    M = fac[:, None, None] * np.where(stick[:, None, None], Pt, Pt - yy)
+    if rad.d_trial is not None:
+        # the radius follows |y_τ|: ∂(r ŷ)/∂y_τ = (r/|y|)(P_τ − ŷŷᵀ) + (∂r/∂|y|) ŷŷᵀ
+        M = M + (slip * rad.d_trial)[:, None, None] * yy
     M = np.einsum("fij,fjk->fik", M, Pt)                          # ∂P_τ/∂y_τ composed with the tangent projector
     dPt_dlam = M.copy()
     dPt_dq = beta[:, None, None] * M

@@ -32,6 +32,8 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
+from .friction import RateLaw
+
 
 @dataclass
 class EnergyTerms:
@@ -183,9 +185,17 @@ def _contact_terms(model, old, new, du, dt):
     lt = lam - ln[:, None] * n
     # the friction law's radius at the converged traction and the step's slip, from its state
     # before the step: the radius the step's Newton iteration used
-    r = mech.law.friction_law.radius(ln, dqt, model.friction_state(old), dt).value
+    fl = mech.law.friction_law
     slip = np.linalg.norm(dqt, axis=1)
-    fric = float(np.sum(area * r * slip))
+    if isinstance(fl, RateLaw):
+        # a rate law's radius at |Δ[[u]]_τ|/Δt: at slip rates whose step slip is below the jumps'
+        # round-off (1e-12 m/s over 0.01 s) that rate is noise and r(V) with it; its dissipation
+        # is λ_τ·Δ[[u]]_τ itself (= r |Δ[[u]]_τ| at a solution, λ_τ ∥ Δ[[u]]_τ), X_τ = 0
+        r = np.linalg.norm(lt, axis=1)
+        fric = float(np.sum(area * np.einsum("fi,fi->f", lt, dqt)))
+    else:
+        r = fl.radius(ln, dqt, model.friction_state(old), dt).value
+        fric = float(np.sum(area * r * slip))
     cn = float(np.sum(area * ln * dqn))
     xt = float(np.sum(area * np.einsum("fi,fi->f", lt, dqt))) - fric
     return fric, cn, xt, float(np.sum(area * (np.abs(ln * dqn) + np.linalg.norm(lt, axis=1) * slip + r * slip)))

@@ -35,11 +35,16 @@ class Radius:
     value : (n,) r, Pa
     d_normal : (n,) ∂r/∂y_n (dimensionless)
     d_slip : (n, d) ∂r/∂s_τ, Pa/m, or None where r does not depend on the slip
+    d_trial : (n,) ∂r/∂|y_τ| (dimensionless), or None: a law whose radius follows from the trial
+        traction (a rate law, :meth:`RateLaw.trial_radius`); every closed patch then slides
+    rate : (n,) the slip rate that radius belongs to, m/s (rate laws)
     """
 
     value: np.ndarray
     d_normal: np.ndarray
     d_slip: np.ndarray | None = None
+    d_trial: np.ndarray | None = None
+    rate: np.ndarray | None = None
 
 
 @runtime_checkable
@@ -64,12 +69,41 @@ class FrictionLaw(Protocol):
         """(n, k) the state of n patches before the first step (k = 0: no state)."""
         ...
 
+    def start(self, state: np.ndarray, lam_n: np.ndarray, lam_t: np.ndarray) -> np.ndarray:
+        """(n, k) the state at the start of a run, in equilibrium with the initial tractions λ_n,
+        |λ_τ| (n,) Pa (a rate law's initial state follows from them; the others keep ``state``)."""
+        ...
+
     def advance(self, state: np.ndarray, slip: np.ndarray, dt: float) -> np.ndarray:
         """(n, k) the state after an accepted step whose slip was ``slip`` (n, d)."""
         ...
 
     def state_fields(self, state: np.ndarray) -> dict[str, np.ndarray]:
         """The state as named (n,) arrays for the outputs (empty without state)."""
+        ...
+
+
+@runtime_checkable
+class RateLaw(Protocol):
+    """A friction law whose radius the contact projection takes from the trial traction: r solves
+    r(V) + βΔtV = |y_τ| with V = |s_τ|/Δt (`rate_state.py`)."""
+
+    def trial_radius(self, y_n: np.ndarray, ny: np.ndarray, state: np.ndarray, dt: float,
+                     beta: np.ndarray) -> Radius:
+        """r, ∂r/∂y_n, ∂r/∂|y_τ| and V at trial tractions y_n, |y_τ| (n,) Pa."""
+        ...
+
+    def stuck(self, rate: np.ndarray) -> np.ndarray:
+        """(n,) bool: the patches reported as stick at slip rates ``rate`` (n,) m/s."""
+        ...
+
+    def advance_at(self, state: np.ndarray, rate: np.ndarray, dt: float) -> np.ndarray:
+        """(n, k) the state after a step at slip rates ``rate`` (n,) m/s."""
+        ...
+
+    def step_error(self, old: np.ndarray, new: np.ndarray, dt: float, sigma: np.ndarray | None = None
+                   ) -> tuple[float, int]:
+        """(local error estimate of the step, patches where the step was too long for the state)."""
         ...
 
 
@@ -88,6 +122,9 @@ class _Stateless:
 
     def initial_state(self, n: int) -> np.ndarray:
         return np.zeros((n, 0))
+
+    def start(self, state, lam_n, lam_t) -> np.ndarray:
+        return state
 
     def advance(self, state, slip, dt) -> np.ndarray:
         return state
@@ -198,6 +235,9 @@ class SlipWeakening:
     def initial_state(self, n: int) -> np.ndarray:
         return np.zeros((n, 1))
 
+    def start(self, state, lam_n, lam_t) -> np.ndarray:
+        return state
+
     def advance(self, state, slip, dt) -> np.ndarray:
         return state + np.linalg.norm(slip, axis=1)[:, None]
 
@@ -205,15 +245,22 @@ class SlipWeakening:
         return {"slip_path": state[:, 0], "friction_coefficient": self.coefficient(state[:, 0])[0]}
 
 
-LAWS = ("frictionless", "tresca", "coulomb", "slip-weakening")
-# the case-file coefficients (contact.KEY, or a fracture's own) and the laws that read them
-LAW_KEYS = {"friction": ("coulomb", "slip-weakening"), "threshold": ("tresca",),
-            "dynamic_friction": ("slip-weakening",), "critical_slip": ("slip-weakening",)}
+LAWS = ("frictionless", "tresca", "coulomb", "slip-weakening", "rate-and-state")
+# the case-file coefficients per face (contact.KEY, or a fracture's own) and the laws that read them
+LAW_KEYS = {"friction": ("coulomb", "slip-weakening", "rate-and-state"), "threshold": ("tresca",),
+            "dynamic_friction": ("slip-weakening",), "critical_slip": ("slip-weakening", "rate-and-state"),
+            "a": ("rate-and-state",), "b": ("rate-and-state",), "reference_rate": ("rate-and-state",),
+            "initial_slip_rate": ("rate-and-state",)}
+# coefficients a law reads that have a default (the others are required)
+LAW_DEFAULTS = {"reference_rate": 1e-6}
 
 
 def friction_law(name: str, n: int, friction=None, threshold=None, dynamic_friction=None,
-                 critical_slip=None) -> FrictionLaw:
-    """The law ``name`` for n patches from its coefficients ((n,) arrays or scalars).
+                 critical_slip=None, a=None, b=None, reference_rate=None, initial_slip_rate=None,
+                 damping=None, state_law: str = "aging", stick_rate: float = 1e-9,
+                 start_from: str = "traction") -> FrictionLaw:
+    """The law ``name`` for n patches from its coefficients ((n,) arrays or scalars; ``damping``
+    η = μ_s/(2c_s) in Pa·s/m, rate-and-state's radiation damping, 0 if None).
 
     Raises
     ------
@@ -233,5 +280,15 @@ def friction_law(name: str, n: int, friction=None, threshold=None, dynamic_frict
         return Tresca(need("threshold", threshold))
     if name == "coulomb":
         return Coulomb(need("friction", friction))
+    if name == "rate-and-state":
+        from .rate_state import RateAndState     # the module imports Radius from here
+
+        return RateAndState(need("friction", friction), need("a", a), need("b", b),
+                            need("critical_slip", critical_slip),
+                            need("reference_rate", LAW_DEFAULTS["reference_rate"] if reference_rate is None
+                                 else reference_rate),
+                            need("initial_slip_rate", initial_slip_rate), need("damping", 0.0 if damping is None
+                                                                               else damping),
+                            state_law, stick_rate, start_from)
     return SlipWeakening(need("friction", friction), need("dynamic_friction", dynamic_friction),
                          need("critical_slip", critical_slip))

@@ -37,7 +37,7 @@ from ..solvers.interface import LinearSystemSolver
 from ..solvers.linear import release_solver
 from ..solvers.newton import Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import OPEN, PATCH_RATIO, SLIP, STICK, ContactLaw, linearise_contact
-from .friction import friction_law
+from .friction import RateLaw, friction_law
 
 log = logging.getLogger("polypore")
 
@@ -78,6 +78,9 @@ class ContactSpec:
     # smallest |P| / A_K of a multiplier patch (discretisation/contact_patches.py); 0: one per face
     patch_ratio: float = PATCH_RATIO
     coefficients: dict = field(default_factory=dict)
+    # rate-and-state: state_law ("aging"/"slip"), stick_rate (m/s), shear_wave_speed (m/s, or None:
+    # no radiation damping)
+    options: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -448,8 +451,13 @@ class ContactMechanics:
             v = np.broadcast_to(np.asarray(v, float), (self.n_ff,))
             return np.array(v if P.identity else P.mean @ v, float)
 
+        opts = dict(c.options)
+        cs = opts.pop("shear_wave_speed", None)
+        if cs is not None:
+            # radiation damping η = μ_s/(2c_s) with the shear modulus of the patch's cell (Rice 1993)
+            opts["damping"] = self.mu[kp] / (2.0 * float(cs))
         law = friction_law(c.law, self.n_c, friction=per_patch(c.friction), threshold=per_patch(c.threshold),
-                           **{k: per_patch(v) for k, v in c.coefficients.items()})
+                           **{k: per_patch(v) for k, v in c.coefficients.items()}, **opts)
         self.law = ContactLaw(law, beta)
 
     def _free_block(self):
@@ -619,14 +627,36 @@ class ContactMechanics:
         """(n_c, k) the friction law's state ``state``, or its initial state for None."""
         return self.law.friction_law.initial_state(self.n_c) if state is None else state
 
+    def start_friction(self, lam: np.ndarray) -> np.ndarray:
+        """(n_c, k) the friction law's state at the start of a run whose initial tractions are the
+        face multipliers ``lam`` (n_ff, d), Pa (a rate law's initial state follows from them)."""
+        lp = self.patch_values(lam)
+        ln = np.einsum("fi,fi->f", lp, self.c_normal)
+        lt = np.linalg.norm(lp - ln[:, None] * self.c_normal, axis=1)
+        return self.law.friction_law.start(self.friction_state(None), ln, lt)
+
     def advance_friction(self, state: np.ndarray | None, u: np.ndarray, q_old: np.ndarray | None,
-                         dt: float) -> np.ndarray:
+                         dt: float, lam: np.ndarray | None = None) -> np.ndarray:
         """(n_c, k) the friction law's state after a step that took the patch jumps from ``q_old``
-        (n_c, d; None: zero) to those of the displacements ``u`` (n_slots·d,), m."""
+        (n_c, d; None: zero) to those of the displacements ``u`` (n_slots·d,), m; ``lam`` (n_c, d)
+        the step's multipliers (Pa), which a rate law takes its slip rate from."""
         q = (self.Jcv @ np.ravel(u)).reshape(self.n_c, self.dim)
         s = q if q_old is None else q - q_old
-        s = s - np.einsum("fi,fi->f", s, self.c_normal)[:, None] * self.c_normal
-        return self.law.friction_law.advance(self.friction_state(state), s, dt)
+        n = self.c_normal
+        s = s - np.einsum("fi,fi->f", s, n)[:, None] * n
+        fl, st = self.law.friction_law, self.friction_state(state)
+        if isinstance(fl, RateLaw) and lam is not None and dt > 0:
+            # V from the trial traction y = λ + βs, not from |s|/Δt: at V Δt far below the jumps'
+            # round-off (1e-12 m/s over 1e-9 s is 1e-21 m of a 1e-3 m jump) the slip is noise,
+            # while the traction fixes V to the local solve's accuracy
+            b = self.law.beta
+            ln = np.einsum("fi,fi->f", lam, n)
+            yn = ln + b * np.einsum("fi,fi->f", q, n)
+            yt = lam - ln[:, None] * n + b[:, None] * s
+            rate = fl.trial_radius(yn, np.linalg.norm(yt, axis=1), st, dt, b).rate
+            assert rate is not None             # a rate law's trial radius carries its rate
+            return fl.advance_at(st, rate, dt)
+        return fl.advance(st, s, dt)
 
     def patch_values(self, face_values: np.ndarray) -> np.ndarray:
         """(n_c, ...) patch means of face values (n_ff, ...) (the values themselves on faces

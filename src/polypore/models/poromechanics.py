@@ -71,6 +71,7 @@ from ..solvers.linear import release_solver
 from ..solvers.newton import PREDICTORS, Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import OPEN, SLIP, linearise_contact
 from .energy import step_energy
+from .friction import RateLaw
 from .flow import FlowData, FlowModel, FlowSolution, _positive
 from .implicit_conductivity import H as LAW_STEP, ImplicitConductivity
 from .mechanics import ContactMechanics, MechanicsData
@@ -204,6 +205,9 @@ class StepInfo:
     energy: object = None
     linear_iterations: list = field(default_factory=list)
     conductivity_growth: float = 1.0    # :meth:`Poromechanics.conductivity_growth` of the step
+    # a rate law's (local error estimate, patches where the step was too long for the state)
+    # (friction.RateLaw.step_error); None for the other laws
+    rate_error: tuple | None = None
 
 
 class Poromechanics:
@@ -651,7 +655,8 @@ class Poromechanics:
             lam = np.zeros((self.n_ff, d))
             state = np.full(self.n_ff, OPEN, np.int8)
         self.u_ref = u.copy()
-        return PoroState(float(t0), u, lam, p, self.aperture_of(u), np.asarray(state, np.int8))
+        return PoroState(float(t0), u, lam, p, self.aperture_of(u), np.asarray(state, np.int8),
+                         friction=mech.start_friction(lam))
 
     def reference_state(self, p0, t0: float = 0.0) -> PoroState:
         """The reference (in-situ) state itself: u = Dirichlet values, λ = λ⁰, pressures from p0
@@ -675,8 +680,9 @@ class Poromechanics:
                                f"fracture face(s): tension or |λ_τ| > F λ_n (largest |λ_τ| / λ_n = "
                                f"{float(np.max(lt[bad] / np.maximum(ln[bad], 1e-300))):.3g}); lower the stress "
                                "ratio's deviation or raise the friction")
-        return PoroState(float(t0), u, mech.face_values(lam0).copy(), p, self.aperture_of(u),
-                         np.asarray(mech.face_values(state), np.int8))
+        lam = mech.face_values(lam0).copy()
+        return PoroState(float(t0), u, lam, p, self.aperture_of(u), np.asarray(mech.face_values(state), np.int8),
+                         friction=mech.start_friction(lam))
 
     def pressure_vector(self, sol: FlowSolution) -> np.ndarray:
         """(n_flow,) the unknown vector of a FlowSolution (FlowDofs order, then cells)."""
@@ -924,7 +930,7 @@ class Poromechanics:
         sflux = self.stabilisation_weights * self.stabilisation_jumps(p - old.p) / dt
         ap = self.aperture_of(u)
         flux_ap = np.maximum(ap, self.closed_aperture) if self._implicit is not None else old.aperture
-        friction = mech.advance_friction(ctx.friction_state, u, ctx.q_old, dt)
+        friction = mech.advance_friction(ctx.friction_state, u, ctx.q_old, dt, lam)
         assert res.active_set is not None
         new = PoroState(t, u, mech.face_values(lam), p, ap, np.asarray(mech.face_values(res.active_set), np.int8),
                         flux_ap, sflux, friction)
@@ -937,6 +943,9 @@ class Poromechanics:
                         res.history, {"setup": t1 - t0, "assembly": res.seconds_assembly, "linear": res.seconds_linear})
         info.linear_iterations = krylov_since()
         info.conductivity_growth = self.conductivity_growth(old.aperture, new.aperture)
+        fl = mech.law.friction_law
+        if isinstance(fl, RateLaw):
+            info.rate_error = fl.step_error(ctx.friction_state, friction, dt, np.einsum("fi,fi->f", lam, mech.c_normal))
         if energy:
             info.energy = step_energy(self, old, new)
         info.seconds["total"] = time.perf_counter() - t0

@@ -34,6 +34,7 @@ from ..io.plots3d import write_3d_plots
 from ..io.results import staged_run_directory, write_json
 from ..models.contact import OPEN, SLIP, STICK
 from ..models.fracture_geometry import arc_length
+from ..models.friction import RateLaw
 from ..setup.casefile import CaseFile, load_case
 from ..setup.flow import well_cells
 from ..setup.meshing import build_fractured_mesh
@@ -53,6 +54,12 @@ log = logging.getLogger("polypore")
 BUBBLE_SHARE = 0.75
 BUBBLE_OVER_NODAL = 3.0
 SLIPPED = 1e-4          # m
+# rate-and-state: the smallest sub-step is at least time.step / 2^RATE_CUTS (a year to 4e-7 s)
+RATE_CUTS = 48
+# a step that changed ln V or ln θ by more than RATE_REJECT × time.rate_tolerance is redone; the
+# next step grows at most RATE_GROWTH-fold
+RATE_REJECT = 2.0
+RATE_GROWTH = 1.5
 
 
 def bubble_slip(model, st, net) -> dict:
@@ -146,13 +153,17 @@ class CoupledMarch:
         self.model, self.schedule, self.recorder, self.series = model, schedule, recorder, series
         self.limit = schedule.max_conductivity_growth
         self.n_steps = len(schedule.times()) - 1
+        # a rate law's steps follow the slip rate (years between events, milliseconds inside one)
+        self.rate_law = isinstance(model.mech.law.friction_law, RateLaw)
+        self.rate_tolerance = schedule.rate_tolerance
 
     def run(self, state):
         """March from ``state``; return the final state."""
+        cuts = max(self.schedule.growth_cuts, RATE_CUTS) if self.rate_law else self.schedule.growth_cuts
         try:
             state, _ = march(self.schedule, state, self.step, self.on_step,
-                             accept=self.accept if self.limit is not None else None,
-                             max_rejections=self.schedule.growth_cuts)
+                             accept=self.accept if self.limit is not None or self.rate_law else None,
+                             max_rejections=cuts)
         except RunError as exc:
             # a Newton iteration that found no equilibrium with a softening friction law: say what it likely is
             hint = self.model.mech.law.friction_law.instability_hint
@@ -163,12 +174,31 @@ class CoupledMarch:
 
     def step(self, st, ta, tb):
         new, info = self.model.step(st, tb - ta, tb)
-        return new, {"info": info, "dt": tb - ta}
+        out = {"info": info, "dt": tb - ta}
+        if info.rate_error is not None:
+            # the change per step ∝ Δt: the next step's size for 0.9 tol, its growth limited so
+            # that the steps' lag (implicit Euler's mean rate) changes smoothly
+            rho = info.rate_error[0] / self.rate_tolerance
+            out["size_factor"] = float(np.clip(0.9 / max(rho, 1e-12), 0.2, RATE_GROWTH))
+            if info.rate_error[1]:
+                out["size_factor"] = min(out["size_factor"], 0.5)
+        return new, out
 
     def accept(self, sub):
-        """None, or why a converged step is redone at half the size (time.max_conductivity_growth)."""
-        g, limit = sub["info"].conductivity_growth, self.limit
-        return None if limit is None or g <= limit else f"a fracture conductivity grew {g:.2g}-fold, above {limit:g}"
+        """None, or why a converged step is redone at a smaller size (time.max_conductivity_growth;
+        a rate law's local error above time.rate_tolerance, or a step too long for its state)."""
+        info = sub["info"]
+        g, limit = info.conductivity_growth, self.limit
+        if limit is not None and g > limit:
+            return f"a fracture conductivity grew {g:.2g}-fold, above {limit:g}"
+        if info.rate_error is not None:
+            err, soft = info.rate_error
+            if soft:
+                return f"the step was too long for the friction state on {soft} patch(es) (ΔtV/D_c ≳ a/b)"
+            if err > RATE_REJECT * self.rate_tolerance:
+                return (f"ln V or ln θ changed by {err:.2g} in the step, above {RATE_REJECT:g} × time.rate_tolerance = "
+                        f"{self.rate_tolerance:g}")
+        return None
 
     def on_step(self, rec, st, is_out):
         """After a schedule step: record it, log it, write its outputs at an output time."""

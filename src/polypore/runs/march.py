@@ -52,7 +52,9 @@ def march(schedule: TimeSchedule, state, step: Callable, on_step: Callable | Non
 
     ``accept(info) -> None | str`` may reject a converged step (the string says why). With it, each
     schedule step is covered by sub-steps of an adapted size h: a rejected or failed sub-step is
-    redone at h/2, an accepted one lets the next try 2h (never beyond the schedule step), and h
+    redone at h/2, an accepted one lets the next try 2h (never beyond the schedule step); a step
+    whose info carries ``size_factor`` (an error controller's) is redone at ≤ h/2 by that factor
+    and followed by a step of that factor × h, and h
     carries over to the next schedule step, so that a slip front moving for days is not found
     again by a cascade of rejections every day. h stays ≥ Δt/2^``max_rejections`` (a sub-step
     rejected at that size is kept with a warning); a failure at h is retried at most
@@ -121,18 +123,23 @@ def _adapted(state, t0, t1, step, max_cuts, accept, rec, h, dt, max_rejections):
             h[0] = 0.5 * size
             continue
         why = accept(info)
+        # an error-controlled step proposes the next size's factor itself (info["size_factor"])
+        factor = info.get("size_factor") if isinstance(info, dict) else None
         if why and size > h_min * (1 + 1e-9):
             rec.rejected += 1
-            log.info("step %g → %g s rejected (%s); redoing it with half the step", t, t + size, why)
-            h[0] = max(0.5 * size, h_min)
+            shrink = 0.5 if factor is None else min(factor, 0.5)
+            log.info("step %g → %g s rejected (%s); redoing it with %.2g of the step", t, t + size, why, shrink)
+            h[0] = max(shrink * size, h_min)
             continue
         if why:
             rec.forced += 1
             log.warning("step %g → %g s kept at the smallest sub-step (%g s) although %s", t, t + size, size, why)
         rec.substeps.append(info)
         rec.cuts = max(rec.cuts, int(round(np.log2(dt / size))) if size < dt else 0)
-        if size >= h[0] * (1 - 1e-9):                 # not a step shortened to land on t1
-            h[0] = min(2.0 * size, dt)
+        if factor is not None and factor < 1.0:
+            h[0] = max(factor * size, h_min)
+        elif size >= h[0] * (1 - 1e-9):               # not a step shortened to land on t1
+            h[0] = min((2.0 if factor is None else factor) * size, dt)
         state, t, fails = new, t + size, 0
     return state
 

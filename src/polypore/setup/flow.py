@@ -312,7 +312,8 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
     fracture_boundary = _fracture_boundary(sec, mesh, params)
     has_pressure = any(v == "exact" or isinstance(v, Pressure) for v in boundary.values()) or any(
         isinstance(v, Pressure) for v in fracture_boundary.values())
-    no_storage = not np.any(np.isfinite(M)) and sec.fracture_compressibility == 0
+    c_f = _fracture_compressibility(spec, sec)
+    no_storage = not np.any(np.isfinite(M)) and c_f == 0
     if not has_pressure and (steady or no_storage):
         raise InputError("flow.boundary", "no boundary part has a pressure condition, so the pressure is only "
                          "defined up to a constant" + (" (a steady problem)" if steady else " (no storage: "
@@ -322,7 +323,7 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
     data = FlowData(permeability=K, viscosity=sec.viscosity, biot_modulus=M,
                     aperture=_point_fn(ap, fvars), normal_permeability=np.broadcast_to(
                         kfn(*cols, 0.0, **fvars), (net.n_faces,)).astype(float),
-                    fracture_compressibility=sec.fracture_compressibility,
+                    fracture_compressibility=c_f,
                     **({"conductivity_law": cond_law} if cond_law is not None else {}))
     exact = on1 = None
     if exact_name is not None:
@@ -339,6 +340,22 @@ def flow_setup(case: CaseFile, fm: FracturedMesh) -> FlowSetup:
                      sec.fracture_alpha, exact, on1,
                      {"fracture_variables": fvars, "tan_psi": float(np.tan(np.radians(sec.dilatancy_angle))),
                       "pressure_stabilisation": sec.pressure_stabilisation}, sec.cell_point)
+
+
+def _fracture_compressibility(spec, sec) -> float:
+    """c_f of the fracture storage (1/Pa): flow.fracture_compressibility, or with rate-and-state
+    friction, when not given, the fluid's compressibility. Without fracture storage the fault
+    pressure of a step much shorter than the fault's drainage time is fixed only by the round-off
+    of the normal jumps (1e-18 m moved it by 5·10⁴ Pa in a 1e-6 s step of fault-injection), which
+    a Coulomb threshold absorbs but a rate-and-state slip rate, exponential in σ′/(aσ′), does not."""
+    c_f = float(sec.fracture_compressibility)
+    law = spec.contact.law if spec.contact is not None else None
+    if law == "rate-and-state" and "fracture_compressibility" not in sec.given() and c_f == 0:
+        c_f = float(sec.fluid_compressibility or 0.0)
+        if c_f > 0:
+            log.info("flow.fracture_compressibility = %g 1/Pa (the fluid's, for rate-and-state friction; give it to "
+                     "change)", c_f)
+    return c_f
 
 
 class _PerFracture:

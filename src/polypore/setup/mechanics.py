@@ -46,7 +46,7 @@ from ..core.expressions import parse
 from ..mesh import FracturedMesh
 from ..models.fracture_geometry import tip_distance
 from ..models.materials import check_elastic, lame
-from ..models.friction import LAW_KEYS
+from ..models.friction import LAW_DEFAULTS, LAW_KEYS
 from ..models.mechanics import ContactSpec, DisplacementBC, MechanicsData, TractionBC
 from ..solvers import linear as _linear
 from ..solvers.factory import SolverChoice
@@ -276,12 +276,21 @@ def mechanics_setup(case: CaseFile, fm: FracturedMesh) -> MechanicsSetup:
                          matrix_pressure=pm_f, biot=sec.biot, fracture_pressure=pf_f, initial_stress=s0_f,
                          contact=ContactSpec(c.law, friction, threshold, c.beta, c.initial, c.patch_ratio,
                                              {k: v for k, v in coeffs.items()
-                                              if k not in ("friction", "threshold") and c.law in LAW_KEYS[k]}),
+                                              if k not in ("friction", "threshold") and c.law in LAW_KEYS[k]},
+                                             _rate_state_options(c)),
                          two_sided=sec.bubbles == "two-sided", bubble_side=sec.bubble_side, stabilisation=stab,
                          bubble_stabilisation=sec.bubble_stabilisation,
                          nodal_stabilisation=nodal,
                          **({"order": order} if order != 1 else {}))
     return MechanicsSetup(data, solver_choice(s.linear, **s.backend_options()), newton, exact, E, nu, choices)
+
+
+def _rate_state_options(c: Contact) -> dict:
+    """The rate-and-state law's case-wide options for ContactSpec.options (empty for other laws)."""
+    if c.law != "rate-and-state":
+        return {}
+    return {"state_law": c.state_law, "stick_rate": float(c.stick_rate), "start_from": c.initial_state_from,
+            "shear_wave_speed": float(c.shear_wave_speed) if c.radiation_damping else None}
 
 
 def is_simplicial(mesh) -> bool:
@@ -461,6 +470,8 @@ def _contact_values(c: Contact, fm: FracturedMesh, params, fractures=()):
                 missing &= ~sel
         if given is not None:
             out[missing] = face_values(key, given, f"contact.{key}", missing)
+        elif c.law in LAW_KEYS[key] and key in LAW_DEFAULTS:
+            out[missing] = LAW_DEFAULTS[key]
         elif c.law in LAW_KEYS[key] and missing.any():
             # without fracture faces there is no contact: the case needs no [contact] table
             rest = sorted({net.names[j] for j in np.unique(net.fracture[missing])})

@@ -11,6 +11,7 @@
     max_cuts = 4                  # halvings of a step whose Newton loop fails before giving up
     max_conductivity_growth = 1e3 # poromechanics: halve a (sub-)step in which a C_f grows more
     growth_cuts = 8               # its smallest sub-step: step / 2^growth_cuts
+    rate_tolerance = 0.05         # rate-and-state: change of ln V and ln θ per sub-step
 """
 
 from __future__ import annotations
@@ -34,6 +35,7 @@ class TimeSchedule:
     max_cuts: int = 4
     max_conductivity_growth: float | None = None
     growth_cuts: int = 8
+    rate_tolerance: float = 0.05
 
     def times(self) -> np.ndarray:
         """(n + 1,) step end times, including every output time exactly."""
@@ -68,4 +70,4 @@ def parse_schedule(spec, required: bool = False) -> TimeSchedule | None:
     outs = () if tt.output_times is None else tuple(sorted(set(tt.output_times)))
     return TimeSchedule(tt.start, tt.end, tt.step, tt.output_every, outs, tt.max_cuts,
                         None if tt.max_conductivity_growth is None else float(tt.max_conductivity_growth),
-                        int(tt.growth_cuts))
+                        int(tt.growth_cuts), float(tt.rate_tolerance))

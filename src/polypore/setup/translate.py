@@ -56,8 +56,10 @@ MESH = {**under("mesh", ("lower", "upper", "size", "fracture_size", "tip_size", 
         "parts": "boundaries", "path": "mesh.file", "fracture": "fractures", "fracture ": "fractures.",
         "refine": "mesh.refine"}
 CORNERPOINT = {"regions": "mesh.region_keyword", "refine": "mesh.refine"}     # process_grid(regions=), refine_grid
-_CONTACT = under("contact", ("law", "friction", "threshold", "dynamic_friction", "critical_slip", "beta",
-                             "patch_ratio"))
+_CONTACT = {**under("contact", ("law", "friction", "threshold", "dynamic_friction", "critical_slip", "beta",
+                                "patch_ratio", "a", "b", "reference_rate", "initial_slip_rate", "state_law",
+                                "stick_rate", "shear_wave_speed")),
+            "start_from": "contact.initial_state_from"}
 MECHANICS = {**under("mechanics", ("order", "bubble_stabilisation", "bubble_side", "nodal_stabilisation")),
              **_CONTACT, "beta_scale": "contact.beta", "displacement": "mechanics.boundary",
              "traction": "mechanics.boundary", "elastic": "material", "params": "parameters"}

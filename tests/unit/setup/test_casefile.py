@@ -54,7 +54,7 @@ def _table(table: str, values: dict) -> CaseFile:
     ("material", {"mu": 1e9, "lambda": -1e9}, "material.lambda: must exceed −2μ/3"),
     ("contact", {"law": "coulomb", "threshold": 1.0}, "contact.threshold: applies to law = 'tresca' only"),
     ("contact", {"law": "coulomb", "critical_slip": 1e-3},
-     "contact.critical_slip: applies to law = 'slip-weakening' only"),
+     "contact.critical_slip: applies to law = 'slip-weakening' or 'rate-and-state' only"),
     ("contact", {"law": "sticky"}, "contact.law: unknown value 'sticky'; allowed: frictionless, tresca, coulomb"),
     ("mechanics", {"biot": True}, "mechanics.biot: expected a number in \\[0, 1\\], got True"),
     ("mechanics", {"boundary": [{"name": "xmin", "u": [0, 0], "ux": 0}]},

@@ -23,7 +23,7 @@ def test_times_hit_output_times_and_end():
     ({"end": 10.0, "step": 1.0, "output_times": [5.0, 12.0]}, "time.output_times", "outside the run"),
     ({"end": 10.0, "step": 1.0, "typo": 1}, "time.typo", "unknown key"),
     ({"end": 10.0, "step": 1.0, "max_conductivity_growth": 1.0}, "time.max_conductivity_growth", "must be > 1, got 1.0"),
-    ({"end": 10.0, "step": 1.0, "growth_cuts": 31}, "time.growth_cuts", "31"),
+    ({"end": 10.0, "step": 1.0, "growth_cuts": 61}, "time.growth_cuts", "61"),
     # issue 25: 100,000 output times were accepted ("about 14 h left")
     ({"end": 1e5, "step": 1.0, "output_times": [float(k) for k in range(1, 100_001)]}, "time.output_times",
      "100,000 distinct output times; allowed: at most 10,000"),

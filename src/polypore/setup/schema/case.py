@@ -84,8 +84,13 @@ class Time(Table):
     max_conductivity_growth: number(gt=1) | None = Field(
         None, description="poromechanics: redo a step at half the size while some fracture face's conductivity "
         "grows more than this factor in it (a slip onset; the conductivities lag one step); default: no limit")
-    growth_cuts: number(ge=0, le=30, integer=True) = Field(8, description="with max_conductivity_growth: the "
-                                                           "smallest sub-step is time.step / 2^growth_cuts")
+    growth_cuts: number(ge=0, le=60, integer=True) = Field(8, description="with max_conductivity_growth: the "
+                                                           "smallest sub-step is time.step / 2^growth_cuts "
+                                                           "(rate-and-state friction: at least 2^48)")
+    rate_tolerance: number(gt=0, le=1) = Field(0.05, description="rate-and-state friction: the sub-steps are sized "
+                                               "so that ln V and ln θ change by about this much per sub-step on every "
+                                               "fault face (from years between events to milliseconds inside one); "
+                                               "implicit Euler's error is proportional to it")
 
     @model_validator(mode="after")
     def _advances(self):

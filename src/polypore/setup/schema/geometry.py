@@ -198,7 +198,8 @@ class Mesh(Table):
 
 # keys of [[fractures]] that give the fracture's own contact and flow data (every kind of fracture)
 FRACTURE_DATA = {"friction": "contact", "threshold": "contact", "dynamic_friction": "contact",
-                 "critical_slip": "contact", "aperture": "flow", "normal_permeability": "flow",
+                 "critical_slip": "contact", "a": "contact", "b": "contact", "reference_rate": "contact",
+                 "initial_slip_rate": "contact", "aperture": "flow", "normal_permeability": "flow",
                  "fracture_conductivity": "flow"}
 
 
@@ -227,8 +228,15 @@ class Fracture(Table):
                                    "contact.threshold")
     dynamic_friction: Expr | None = Field(None, description="slip-weakening: dynamic friction F_d on this fracture, "
                                           "instead of contact.dynamic_friction")
-    critical_slip: Expr | None = Field(None, description="slip-weakening: critical slip D_c (m) on this fracture, "
-                                       "instead of contact.critical_slip")
+    critical_slip: Expr | None = Field(None, description="slip-weakening, rate-and-state: critical slip D_c (m) on "
+                                       "this fracture, instead of contact.critical_slip")
+    a: Expr | None = Field(None, description="rate-and-state: direct effect a on this fracture, instead of contact.a")
+    b: Expr | None = Field(None, description="rate-and-state: evolution effect b on this fracture, instead of "
+                           "contact.b")
+    reference_rate: Expr | None = Field(None, description="rate-and-state: V₀ (m/s) on this fracture, instead of "
+                                        "contact.reference_rate")
+    initial_slip_rate: Expr | None = Field(None, description="rate-and-state: V_i (m/s) on this fracture, instead "
+                                           "of contact.initial_slip_rate")
     aperture: Expr | None = Field(None, description="flow: d_f (m) > 0 on this fracture (expression of x, y, z, t, "
                                   "D, L), instead of flow.aperture")
     normal_permeability: Expr | None = Field(None, description="flow: K_fn (m²) > 0 on this fracture (x, y, z, "

@@ -15,6 +15,9 @@ from pydantic_core import PydanticCustomError
 
 from ...models.contact import PATCH_RATIO
 from ...models.friction import LAW_KEYS, LAWS
+
+# the rate-and-state keys of [contact] that are one value for the case, not per face
+RATE_STATE_OPTIONS = ("state_law", "shear_wave_speed", "radiation_damping", "stick_rate", "initial_state_from")
 from .types import (Expr, ExprTensor, ExprVector, ExprVectorOrExact, Positive, Table, Text, choice, fail, finite,
                     is_number, number, show)
 
@@ -239,13 +242,37 @@ class Contact(Table):
 
     law: choice(*LAWS) = Field("coulomb", description="contact law")
     friction: Expr | None = Field(None, description="coulomb, slip-weakening: (static) friction coefficient "
-                                  "F ≥ 0, an expression of x, "
-                                  "y, z and D (distance to the fracture's nearest tip, m)")
+                                  "F ≥ 0; rate-and-state: the reference coefficient f₀ at reference_rate; an "
+                                  "expression of x, y, z and D (distance to the fracture's nearest tip, m)")
     threshold: Expr | None = Field(None, description="tresca: threshold g ≥ 0 (Pa), same variables")
     dynamic_friction: Expr | None = Field(None, description="slip-weakening: dynamic friction coefficient F_d, "
                                           "0 ≤ F_d ≤ friction, reached after critical_slip of slip; same variables")
     critical_slip: Expr | None = Field(None, description="slip-weakening: slip D_c > 0 (m) over which the friction "
-                                       "falls linearly from friction to dynamic_friction; same variables")
+                                       "falls linearly from friction to dynamic_friction; rate-and-state: the "
+                                       "characteristic slip D_c > 0 (m) of the state evolution; same variables")
+    a: Expr | None = Field(None, description="rate-and-state: direct effect a > 0 (μ = f₀ + a ln(V/V₀) + "
+                           "b ln(V₀θ/D_c), regularised); same variables")
+    b: Expr | None = Field(None, description="rate-and-state: evolution effect b ≥ 0 (a < b: velocity weakening, "
+                           "earthquakes possible); same variables")
+    reference_rate: Expr | None = Field(None, description="rate-and-state: reference slip rate V₀ > 0 (m/s) of "
+                                        "f₀ (default 1e-6); same variables")
+    initial_slip_rate: Expr | None = Field(None, description="rate-and-state: slip rate V_i > 0 (m/s) at the start; "
+                                           "each face's initial state θ₀ follows from its initial traction "
+                                           "(τ = σ′ μ(V_i, θ₀) + η V_i); same variables")
+    state_law: choice("aging", "slip") = Field("aging", description="rate-and-state: state evolution, aging "
+                                               "(θ̇ = 1 − Vθ/D_c) or slip (θ̇ = −(Vθ/D_c) ln(Vθ/D_c))")
+    shear_wave_speed: Positive | None = Field(None, description="rate-and-state: shear-wave speed c_s (m/s) of the "
+                                              "radiation damping η V, η = μ/(2c_s) with μ the shear modulus next "
+                                              "to each face (quasi-dynamic slip); required unless "
+                                              "radiation_damping = false")
+    radiation_damping: bool = Field(True, description="rate-and-state: the radiation-damping term η V (false: "
+                                    "fully quasi-static, slip rates unbounded in an instability)")
+    initial_state_from: choice("traction", "steady") = Field(
+        "traction", description="rate-and-state: each face's initial state θ₀ such that its initial traction slides "
+        "at initial_slip_rate (\"traction\"), or the steady state θ₀ = critical_slip/initial_slip_rate "
+        "(\"steady\"; the face's slip rate then follows from its traction)")
+    stick_rate: Positive = Field(1e-9, description="rate-and-state: slip rate (m/s) below which a face is reported "
+                                 "as stick (every closed face creeps; this only sorts the outputs)")
     beta: Positive = Field(1.0, description="c in β = c (2μ + λ)/h of the augmented multipliers")
     initial: choice("closed", "open") = Field("closed", description="first Newton iterate: closed (bonded) or "
                                               "open (λ = 0)")
@@ -256,8 +283,12 @@ class Contact(Table):
 
     @model_validator(mode="after")
     def _law_keys(self):
-        for key, laws in LAW_KEYS.items():
-            if key in self.given() and self.law not in laws:
+        given = self.given()
+        for key, laws in {**LAW_KEYS, **{k: ("rate-and-state",) for k in RATE_STATE_OPTIONS}}.items():
+            if key in given and self.law not in laws:
                 fail(f"applies to law = {' or '.join(map(repr, laws))} only; this case has law = {self.law!r}",
                      key=key)
+        if self.law == "rate-and-state" and self.radiation_damping and self.shear_wave_speed is None:
+            fail("is required by law = 'rate-and-state' (the radiation damping η = μ/(2c_s), m/s, e.g. 3464); "
+                 "or set radiation_damping = false", key="shear_wave_speed")
         return self
