@@ -62,3 +62,27 @@ def test_stable_slider_returns_to_steady_sliding_and_unstable_one_slips_fast():
     assert unstable.success
     vmax = float(np.exp(unstable.y[1].max()))
     assert 1e-3 < vmax < SIGMA / eta                            # seismic rates, below the damping's bound σ′/η
+
+
+@pytest.mark.parametrize("law,stiffness,eta", [("aging", 2.0, 0.0), ("slip", 0.8, 30e9 / (2 * 3464.0))])
+def test_polypore_step_converges_at_first_order_to_the_ode(law, stiffness, eta):
+    """polypore's step for one patch (models/rate_state.py: the patch's scalar equation with β = k,
+    the exact state update) on the spring-slider after a 10 % velocity step, stable (k = 2k_c) and
+    growing (k = 0.8k_c): slip, ln V and ln θ converge to the Radau solution at first order (the
+    step's rate is its mean, docs/rate_state_design.md)."""
+    from polypore.cases.spring_slider import polypore_steps
+
+    kc = (B - A) * SIGMA / DC
+    s = SpringSlider(k=stiffness * kc, sigma=SIGMA, a=A, b=B, Dc=DC, f0=F0, V0=V0, law=law, eta=eta)
+    y0 = np.array([0.0, np.log(1.1e-9), np.log(DC / 1e-9)])
+    T = 4e5 if stiffness > 1 else 2e6
+    errors = []
+    for n in (500, 1000, 2000):
+        t, d, V, th, _ = polypore_steps(s, y0, T / n, n)
+        ref = s.integrate(T, y0, t_eval=t)
+        errors.append([np.max(np.abs(d - ref.y[0])) / np.max(np.abs(ref.y[0])),
+                       np.max(np.abs(np.log(V[1:]) - ref.y[1][1:])), np.max(np.abs(np.log(th) - ref.y[2]))])
+    errors = np.array(errors)
+    order = np.log2(errors[:-1] / errors[1:])
+    assert np.all((order > 0.9) & (order < 1.15)), order
+    assert np.all(errors[-1] < (2e-4 if stiffness > 1 else 2e-2))

@@ -107,3 +107,37 @@ class SpringSlider:
         y0 = self.steady_state() if y0 is None else np.asarray(y0, float)
         return solve_ivp(self.rhs, (0.0, t_end), y0, method="Radau", rtol=rtol, atol=atol, t_eval=t_eval,
                          jac=lambda t, y: self.jacobian(y))
+
+
+def polypore_steps(slider: SpringSlider, y0, dt: float, n_steps: int):
+    """The spring-slider stepped by polypore's own scheme for a contact patch (models/rate_state.py):
+    per step the balance k(V_L t_n − δ_n) + τ₀ = σ′μ(V, θ(V)) + ηV with V = (δ_n − δ_{n−1})/Δt and
+    θ(V) the exact state update is r(V) + kΔtV = τ₀ + k(V_L t_n − δ_{n−1}): the patch's scalar
+    equation with β = k, solved by :meth:`RateAndState.solve_rate`.
+
+    Parameters
+    ----------
+    y0 : (δ, ln V, ln θ) at t = 0 (τ₀ follows from the balance there);  dt : the step, s
+
+    Returns
+    -------
+    t, δ (m), V (m/s), θ (s), τ (Pa): (n_steps + 1,) each
+    """
+    from ..models.rate_state import RateAndState
+
+    one = np.ones(1)
+    law = RateAndState(one * slider.f0, slider.a, slider.b, slider.Dc, slider.V0, float(np.exp(y0[1])),
+                       slider.eta, slider.law)
+    delta, V, theta = float(y0[0]), float(np.exp(y0[1])), float(np.exp(y0[2]))
+    tau0 = slider.sigma * float(law.friction(np.array([V]), np.array([theta]))[0]) + slider.eta * V + slider.k * delta
+    out = np.zeros((n_steps + 1, 5))
+    out[0] = 0.0, delta, V, theta, tau0 - slider.k * delta
+    for n in range(1, n_steps + 1):
+        t = n * dt
+        y = tau0 + slider.k * (slider.VL * t - delta)
+        sol = law.solve_rate(one * slider.sigma, one * y, one * theta, dt, one * slider.k, guess=one * V)
+        V = float(sol.rate[0])
+        theta = float(np.exp(law.log_state(np.log(one * V), one * theta, dt)[0][0]))
+        delta += V * dt
+        out[n] = t, delta, V, theta, tau0 + slider.k * (slider.VL * t - delta)
+    return out.T
