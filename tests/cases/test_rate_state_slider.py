@@ -37,3 +37,7 @@ def test_steady_sliding_friction(tmp_path, state_law):
     assert summary["energy_check"]["violations"] == []
     steps = summary["steps"]
     assert steps[-1]["slip"] == len(V) and steps[0]["slip"] == 0
+    # velocity strengthening (a > b): no event, all the slip aseismic, in the catalogue's moment
+    seis = summary["seismicity"]
+    assert seis["events"] == 0 and (tmp_path / "events.csv").read_text().startswith("fault,onset_s")
+    assert seis["aseismic_moment"]["fault"] > 0

@@ -43,6 +43,7 @@ from ..setup.translate import RUN_POROMECHANICS, case_keys
 from .common import RunClock, corner_point_faults
 from .march import march
 from .recorder import OutputSeries, PoroRecorder
+from .seismicity import EventCatalogue
 
 log = logging.getLogger("polypore")
 
@@ -106,9 +107,13 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
         series = OutputSeries(stage)
         recorder.record(state)          # before the output: its VTU holds the onsets up to now
         recorder.output(series, 0, state)
+        catalogue = event_catalogue(run)
         with case_keys(RUN_POROMECHANICS):      # errors of the march (time-dependent data, aperture laws, PETSc)
-            state = CoupledMarch(run.model, run.schedule, recorder, series).run(state)
-        summary = write_results(run, recorder, series, state, clock)
+            state = CoupledMarch(run.model, run.schedule, recorder, series, catalogue).run(state)
+        if catalogue is not None:
+            catalogue.finish(state.time)
+            catalogue.write(stage / "events.csv")
+        summary = write_results(run, recorder, series, state, clock, catalogue)
     return summary
 
 
@@ -149,8 +154,10 @@ class CoupledMarch:
     model : Poromechanics; schedule : TimeSchedule; recorder : PoroRecorder; series : OutputSeries.
     """
 
-    def __init__(self, model, schedule, recorder: PoroRecorder, series: OutputSeries):
+    def __init__(self, model, schedule, recorder: PoroRecorder, series: OutputSeries,
+                 catalogue: EventCatalogue | None = None):
         self.model, self.schedule, self.recorder, self.series = model, schedule, recorder, series
+        self.catalogue = catalogue
         self.limit = schedule.max_conductivity_growth
         self.n_steps = len(schedule.times()) - 1
         # a rate law's steps follow the slip rate (years between events, milliseconds inside one)
@@ -182,6 +189,12 @@ class CoupledMarch:
             out["size_factor"] = float(np.clip(0.9 / max(rho, 1e-12), 0.2, RATE_GROWTH))
             if info.rate_error[1]:
                 out["size_factor"] = min(out["size_factor"], 0.5)
+        if self.catalogue is not None:
+            # the face slip rates and slip increments, for the catalogue once the sub-step is accepted
+            m = self.model
+            rate = m.mech.face_values(new.friction[:, 1])
+            slip = tangential(m.jumps(new.u) - m.jumps(st.u), m.mech.normal)
+            out["seismic"] = (ta, tb, rate, slip)
         return new, out
 
     def accept(self, sub):
@@ -202,6 +215,10 @@ class CoupledMarch:
 
     def on_step(self, rec, st, is_out):
         """After a schedule step: record it, log it, write its outputs at an output time."""
+        if self.catalogue is not None:
+            for sub in rec.substeps:          # the accepted sub-steps, in order (their arrays go)
+                if "seismic" in sub:
+                    self.catalogue.add(*sub.pop("seismic"))
         row = self.recorder.step_row(rec)
         _log_step(rec, row, self.n_steps)
         if rec.index == self.n_steps:
@@ -227,7 +244,21 @@ def _log_step(rec, row: dict, n_steps: int) -> None:
              info.residual, lin, info.open, info.stick, info.slip, rec.seconds, rec.progress)
 
 
-def write_results(run: CoupledRun, recorder: PoroRecorder, series: OutputSeries, state, clock: RunClock) -> dict:
+def event_catalogue(run: CoupledRun) -> EventCatalogue | None:
+    """The run's event catalogue with a rate law (None otherwise): threshold contact.seismic_rate."""
+    model = run.model
+    if not isinstance(model.mech.law.friction_law, RateLaw) or not model.n_ff:
+        return None
+    mech, net = model.mech, run.fm.network
+    contact = run.case.spec.contact
+    mu = mech.face_values(mech.mu[mech.patches.plus_cell])
+    return EventCatalogue(net.fracture, tuple(net.names), mech.face_area, mu,
+                          run.fm.mesh.geometry.face_centroid[net.faces], run.fm.mesh.dim,
+                          float(contact.seismic_rate))
+
+
+def write_results(run: CoupledRun, recorder: PoroRecorder, series: OutputSeries, state, clock: RunClock,
+                  catalogue: EventCatalogue | None = None) -> dict:
     """The write phase: solution.pvd, fractures.csv, the plots, README.txt and summary.json (returned)
     into the series' folder, after the checks of the final state (bubble slip, energy estimate)."""
     model, mesh, net = run.model, run.fm.mesh, run.fm.network
@@ -253,6 +284,7 @@ def write_results(run: CoupledRun, recorder: PoroRecorder, series: OutputSeries,
         **({"faults": run.faults} if run.faults is not None else {}),
         "choices": run.solver_setup.choices,
         **recorder.summary(bubble),
+        **({"seismicity": catalogue.summary()} if catalogue is not None else {}),
         # the time split covers the whole run, the initial equilibrium included; the plots are
         # part of "other"
         "totals": {**clock.totals(run.solver_setup.solver), "seconds_plots": t_plots, **recorder.totals()},

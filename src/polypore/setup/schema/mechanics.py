@@ -17,7 +17,8 @@ from ...models.contact import PATCH_RATIO
 from ...models.friction import LAW_KEYS, LAWS
 
 # the rate-and-state keys of [contact] that are one value for the case, not per face
-RATE_STATE_OPTIONS = ("state_law", "shear_wave_speed", "radiation_damping", "stick_rate", "initial_state_from")
+RATE_STATE_OPTIONS = ("state_law", "shear_wave_speed", "radiation_damping", "stick_rate", "initial_state_from",
+                      "seismic_rate")
 from .types import (Expr, ExprTensor, ExprVector, ExprVectorOrExact, Positive, Table, Text, choice, fail, finite,
                     is_number, number, show)
 
@@ -271,6 +272,8 @@ class Contact(Table):
         "traction", description="rate-and-state: each face's initial state θ₀ such that its initial traction slides "
         "at initial_slip_rate (\"traction\"), or the steady state θ₀ = critical_slip/initial_slip_rate "
         "(\"steady\"; the face's slip rate then follows from its traction)")
+    seismic_rate: Positive = Field(1e-3, description="rate-and-state: slip rate (m/s) above which a fault's "
+                                   "slip is an event of events.csv (onset, hypocentre, area, slip, M0, Mw)")
     stick_rate: Positive = Field(1e-9, description="rate-and-state: slip rate (m/s) below which a face is reported "
                                  "as stick (every closed face creeps; this only sorts the outputs)")
     beta: Positive = Field(1.0, description="c in β = c (2μ + λ)/h of the augmented multipliers")
