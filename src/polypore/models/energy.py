@@ -69,6 +69,9 @@ class EnergyTerms:
     dilatancy_work: float = 0.0
     stabilisation: float = 0.0
     delta_stabilisation: float = 0.0
+    # Σ|σ| λ_n (|[[u]]_n^n| + |[[u]]_n^{n−1}|) over the patches closed at both ends of the step:
+    # the most work their normal jumps, 0 at an exact solution, can do at Newton's tolerance
+    unresolved_normal: float = 0.0
 
     @property
     def source_work(self) -> float:
@@ -120,7 +123,7 @@ def step_energy(model, old, new) -> EnergyTerms:
     du = u - u0
     Au = model.mech.A @ u
     elastic, d_el, storage, d_st, stab, d_stab, num, scale = _stored_terms(model, old, new, u, u0, du, Au)
-    fric, cn, xt, s_contact = _contact_terms(model, old, new, du, dt)
+    fric, cn, xt, s_contact, unresolved = _contact_terms(model, old, new, du, dt)
     load_w, reac_w, s_work = _work_terms(model, new, du, Au, t)
     v_m, v_f, v_x, src_w, bnd_w, s_flow = _flow_terms(model, new, t, dt)
     dil_w, s_dil = _dilatancy_work(model, old, new)
@@ -130,7 +133,7 @@ def step_energy(model, old, new) -> EnergyTerms:
     scale += s_flow
     scale += s_dil
     return EnergyTerms(t, dt, elastic, storage, d_el, d_st, fric, v_m + v_f + v_x, v_m, v_f, v_x, cn, xt, num,
-                       load_w, reac_w, src_w, bnd_w, scale, dil_w, stab, d_stab)
+                       load_w, reac_w, src_w, bnd_w, scale, dil_w, stab, d_stab, unresolved)
 
 
 def _stored_terms(model, old, new, u, u0, du, Au):
@@ -173,7 +176,7 @@ def _contact_terms(model, old, new, du, dt):
     """Friction dissipation on the slip increment, normal work and tangential excess, per multiplier
     (patch, discretisation/contact_patches.py): Σ_P |P| λ_P·Δ[[u]]_P = Σ_σ |σ| λ_σ·Δ[[u]]_σ; and their scale."""
     if not model.n_ff:
-        return 0.0, 0.0, 0.0, 0.0
+        return 0.0, 0.0, 0.0, 0.0, 0.0
     mech, d = model.mech, model.dim
     n = mech.c_normal
     area = mech.c_area
@@ -198,7 +201,16 @@ def _contact_terms(model, old, new, du, dt):
         fric = float(np.sum(area * r * slip))
     cn = float(np.sum(area * ln * dqn))
     xt = float(np.sum(area * np.einsum("fi,fi->f", lt, dqt))) - fric
-    return fric, cn, xt, float(np.sum(area * (np.abs(ln * dqn) + np.linalg.norm(lt, axis=1) * slip + r * slip)))
+    # closed at both ends of the step, a patch's normal jump is 0 up to Newton's tolerance, and
+    # λ_n Δ[[u]]_n ≥ 0, which the estimate assumes, up to the work of that residue (−3.3e-8 J from
+    # 5e-18 m jumps in a 5 ms step of a rate-and-state run, 1e-8 of its scale: docs/rate_state_design.md)
+    ln_old = np.einsum("fi,fi->f", mech.patch_values(old.lam), n)
+    both = (ln > 0) & (ln_old > 0)
+    qn_new = np.einsum("fi,fi->f", (mech.Jcv @ new.u.ravel()).reshape(mech.n_c, d), n)
+    qn_old = np.einsum("fi,fi->f", (mech.Jcv @ old.u.ravel()).reshape(mech.n_c, d), n)
+    unresolved = float(np.sum((area * ln * (np.abs(qn_new) + np.abs(qn_old)))[both]))
+    return (fric, cn, xt, float(np.sum(area * (np.abs(ln * dqn) + np.linalg.norm(lt, axis=1) * slip + r * slip))),
+            unresolved)
 
 
 def _work_terms(model, new, du, Au, t):
@@ -266,7 +278,8 @@ def _dilatancy_work(model, old, new):
 
 
 def check_energy(terms, rtol: float = 1e-9) -> list[str]:
-    """Violations of ΔE + D_friction + D_viscous ≤ W (+ rtol × scale), one message per step.
+    """Violations of ΔE + D_friction + D_viscous ≤ W (+ rtol × scale + the work of the closed
+    patches' unresolved normal jumps, ``unresolved_normal``), one message per step.
 
     Parameters
     ----------
@@ -275,9 +288,10 @@ def check_energy(terms, rtol: float = 1e-9) -> list[str]:
     """
     out = []
     for k, e in enumerate(terms):
-        if not e.balance >= -rtol * e.scale:
+        tol = rtol * e.scale + e.unresolved_normal
+        if not e.balance >= -tol:
             out.append(f"step {k} (t = {e.time:g} s): ΔE + friction + viscous exceeds the work by "
-                       f"{-e.balance:.3e} J (tolerance {rtol * e.scale:.1e}; "
+                       f"{-e.balance:.3e} J (tolerance {tol:.1e}; "
                        f"ΔE = {e.delta_elastic + e.delta_storage + e.delta_stabilisation:.3e},"
                        f" friction {e.friction_dissipation:.3e}, viscous {e.viscous_dissipation:.3e}, "
                        f"work {e.source_work:.3e})")
