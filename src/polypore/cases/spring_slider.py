@@ -109,35 +109,58 @@ class SpringSlider:
                          jac=lambda t, y: self.jacobian(y))
 
 
-def polypore_steps(slider: SpringSlider, y0, dt: float, n_steps: int):
-    """The spring-slider stepped by polypore's own scheme for a contact patch (models/rate_state.py):
-    per step the balance k(V_L t_n − δ_n) + τ₀ = σ′μ(V, θ(V)) + ηV with V = (δ_n − δ_{n−1})/Δt and
-    θ(V) the exact state update is r(V) + kΔtV = τ₀ + k(V_L t_n − δ_{n−1}): the patch's scalar
-    equation with β = k, solved by :meth:`RateAndState.solve_rate`.
+
+class PatchSlider:
+    """The spring-slider as one contact patch of the model (models/rate_state.py): the balance
+    k(V_L t_n − δ_n) + τ₀ = σ′μ(V, θ(V)) + ηV with V = (δ_n − δ_{n−1})/Δt and θ(V) the exact
+    state update is r(V) + kΔtV = τ₀ + k(V_L t_n − δ_{n−1}), the patch's scalar equation with β = k,
+    solved by :meth:`RateAndState.solve_rate`; the state (θ, V) is the law's.
 
     Parameters
     ----------
-    y0 : (δ, ln V, ln θ) at t = 0 (τ₀ follows from the balance there);  dt : the step, s
+    slider : SpringSlider;  y0 : (δ, ln V, ln θ) at t = 0 (τ₀ follows from the balance there)
+    """
+
+    def __init__(self, slider: SpringSlider, y0):
+        from ..models.rate_state import RateAndState
+
+        self.slider = slider
+        one = self.one = np.ones(1)
+        V, theta = float(np.exp(y0[1])), float(np.exp(y0[2]))
+        self.law = RateAndState(one * slider.f0, slider.a, slider.b, slider.Dc, slider.V0, V, slider.eta, slider.law)
+        self.delta0 = float(y0[0])
+        self.state0 = np.array([[theta, V]])               # the law's (n = 1, 2) state
+        sigma = one * slider.sigma
+        self.tau0 = float(sigma[0] * self.law.friction(one * V, one * theta)[0]
+                          + self.law.damping_at(sigma)[0][0] * V) + slider.k * self.delta0
+
+    def step(self, t: float, h: float, delta: float, state: np.ndarray) -> np.ndarray:
+        """The law's state (1, 2) after the step t − h → t (s) from slip ``delta`` (m) and ``state``."""
+        s, one = self.slider, self.one
+        y = self.tau0 + s.k * (s.VL * t - delta)
+        V = self.law.solve_rate(one * s.sigma, one * y, state[:, 0], h, one * s.k, guess=state[:, 1]).rate
+        return self.law.advance_at(state, V, h)
+
+    def shear(self, t: float, delta: float) -> float:
+        """τ = τ₀ + k(V_L t − δ), Pa."""
+        return self.tau0 + self.slider.k * (self.slider.VL * t - delta)
+
+
+def polypore_steps(slider: SpringSlider, y0, dt: float, n_steps: int):
+    """The spring-slider stepped by polypore's own scheme for a contact patch (:class:`PatchSlider`)
+    with n_steps fixed steps dt (s) from y0 = (δ, ln V, ln θ).
 
     Returns
     -------
     t, δ (m), V (m/s), θ (s), τ (Pa): (n_steps + 1,) each
     """
-    from ..models.rate_state import RateAndState
-
-    one = np.ones(1)
-    law = RateAndState(one * slider.f0, slider.a, slider.b, slider.Dc, slider.V0, float(np.exp(y0[1])),
-                       slider.eta, slider.law)
-    delta, V, theta = float(y0[0]), float(np.exp(y0[1])), float(np.exp(y0[2]))
-    tau0 = slider.sigma * float(law.friction(np.array([V]), np.array([theta]))[0]) + slider.eta * V + slider.k * delta
+    p = PatchSlider(slider, y0)
+    delta, state = p.delta0, p.state0
     out = np.zeros((n_steps + 1, 5))
-    out[0] = 0.0, delta, V, theta, tau0 - slider.k * delta
+    out[0] = 0.0, delta, state[0, 1], state[0, 0], p.shear(0.0, delta)
     for n in range(1, n_steps + 1):
         t = n * dt
-        y = tau0 + slider.k * (slider.VL * t - delta)
-        sol = law.solve_rate(one * slider.sigma, one * y, one * theta, dt, one * slider.k, guess=one * V)
-        V = float(sol.rate[0])
-        theta = float(np.exp(law.log_state(np.log(one * V), one * theta, dt)[0][0]))
-        delta += V * dt
-        out[n] = t, delta, V, theta, tau0 + slider.k * (slider.VL * t - delta)
+        state = p.step(t, dt, delta, state)
+        delta += state[0, 1] * dt
+        out[n] = t, delta, state[0, 1], state[0, 0], p.shear(t, delta)
     return out.T

@@ -112,7 +112,8 @@ def linearise_contact(law: ContactLaw, lam: np.ndarray, q: np.ndarray, s: np.nda
     inside = (ny <= r) & (r > 0)                                  # the projection's value
     stick = (ny < (1.0 - STICK_SLIP_TIE) * r) & (r > 0)           # state and derivative (ties: slip)
     slip = ~stick
-    shown = ~(fl.stuck(rad.rate) | stick) if rad.rate is not None and isinstance(fl, RateLaw) else slip
+    # a rate law reports as stick the patches creeping below its stick_rate
+    shown = ~(fl.stuck(rad.rate) | stick) if isinstance(fl, RateLaw) and rad.rate is not None else slip
     codes = np.where(~closed, OPEN, np.where(shown, SLIP, STICK)).astype(np.int8)
 
     # P(y) and its derivative with respect to (λ, q): normal part

@@ -152,12 +152,12 @@ class RateAndState:
             dphi = np.where(small, -0.5 + w / 3 - w * w / 8, (e * (1.0 + ws) - 1.0) / (ws * ws))
             theta = theta0 * e + dt * phi
             return np.log(theta), w * (-theta0 * e + dt * dphi) / theta
-        # slip law: ln(Vθ/D_c) = ln(Vθ₀/D_c) e^{−w}
-        L0 = x + np.log(theta0 / Dc)
+        # slip law: ln(Vθ/D_c) = ln(Vθ₀/D_c) e^{−w}; V = 0 keeps θ₀ (x = −∞ would give −∞ + ∞)
         finite = np.isfinite(x)
-        lt = np.where(finite, np.log(Dc) - np.where(finite, x, 0.0) + np.where(finite, L0, 0.0) * e, np.log(theta0))
-        dlt = np.where(finite, np.expm1(-w) - np.where(finite, L0, 0.0) * w * e, 0.0)
-        return lt, dlt
+        xf = np.where(finite, x, 0.0)
+        L0 = xf + np.log(theta0 / Dc)
+        lt = np.where(finite, np.log(Dc) - xf + L0 * e, np.log(theta0))
+        return lt, np.where(finite, np.expm1(-w) - L0 * w * e, 0.0)
 
     def coefficient(self, x: np.ndarray, log_theta: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(μ, ∂μ/∂ln z) at V = e^x and θ = e^{log_theta}, ln z = x − ln 2V₀ + Ψ/a; asinh evaluated
@@ -250,7 +250,8 @@ class RateAndState:
 
     # ---- the FrictionLaw interface -------------------------------------------------------------
     def radius(self, y_n, slip, state, dt) -> Radius:
-        """r at the step's slip (explicit in s_τ: the energy audit's radius). Δt = 0: ∞ (held)."""
+        """r at the step's slip, explicit in s_τ (the FrictionLaw form; the contact projection uses
+        :meth:`trial_radius`, which agrees with it at a solution). Δt = 0: ∞ (held)."""
         n = len(y_n)
         if dt <= 0:
             return Radius(np.where(y_n > 0, np.inf, 0.0), np.zeros(n))

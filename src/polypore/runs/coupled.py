@@ -183,12 +183,7 @@ class CoupledMarch:
         new, info = self.model.step(st, tb - ta, tb)
         out = {"info": info, "dt": tb - ta}
         if info.rate_error is not None:
-            # the change per step ∝ Δt: the next step's size for 0.9 tol, its growth limited so
-            # that the steps' lag (implicit Euler's mean rate) changes smoothly
-            rho = info.rate_error[0] / self.rate_tolerance
-            out["size_factor"] = float(np.clip(0.9 / max(rho, 1e-12), 0.2, RATE_GROWTH))
-            if info.rate_error[1]:
-                out["size_factor"] = min(out["size_factor"], 0.5)
+            out["rate_rejection"], out["size_factor"] = rate_step_control(info.rate_error, self.rate_tolerance)
         if self.catalogue is not None:
             # the face slip rates and slip increments, for the catalogue once the sub-step is accepted
             m = self.model
@@ -199,19 +194,12 @@ class CoupledMarch:
 
     def accept(self, sub):
         """None, or why a converged step is redone at a smaller size (time.max_conductivity_growth;
-        a rate law's local error above time.rate_tolerance, or a step too long for its state)."""
+        a rate law's sub-step, :func:`rate_step_control`)."""
         info = sub["info"]
         g, limit = info.conductivity_growth, self.limit
         if limit is not None and g > limit:
             return f"a fracture conductivity grew {g:.2g}-fold, above {limit:g}"
-        if info.rate_error is not None:
-            err, soft = info.rate_error
-            if soft:
-                return f"the step was too long for the friction state on {soft} patch(es) (ΔtV/D_c ≳ a/b)"
-            if err > RATE_REJECT * self.rate_tolerance:
-                return (f"ln V or ln θ changed by {err:.2g} in the step, above {RATE_REJECT:g} × time.rate_tolerance = "
-                        f"{self.rate_tolerance:g}")
-        return None
+        return sub.get("rate_rejection")
 
     def on_step(self, rec, st, is_out):
         """After a schedule step: record it, log it, write its outputs at an output time."""
@@ -228,6 +216,22 @@ class CoupledMarch:
         self.recorder.record(st)
         if is_out:
             self.recorder.output(self.series, rec.index, st)
+
+
+def rate_step_control(rate_error: tuple, tolerance: float) -> tuple[str | None, float]:
+    """A rate law's sub-step: (why it is redone, or None; the next size's factor), from its
+    :meth:`RateLaw.step_error` (the largest change of ln V and ln θ, the patches where it was too
+    long for the state) and time.rate_tolerance. The change per step ∝ Δt: the next size aims at
+    0.9 tol, growing at most RATE_GROWTH-fold so that the steps' lag (implicit Euler's mean rate)
+    changes smoothly; a step too long for the state is followed by at most half its size."""
+    err, soft = rate_error
+    factor = float(np.clip(0.9 / max(err / tolerance, 1e-12), 0.2, RATE_GROWTH))
+    if soft:
+        return f"the step was too long for the friction state on {soft} patch(es) (ΔtV/D_c ≳ a/b)", min(factor, 0.5)
+    if err > RATE_REJECT * tolerance:
+        return (f"ln V or ln θ changed by {err:.2g} in the step, above {RATE_REJECT:g} × time.rate_tolerance = "
+                f"{tolerance:g}"), factor
+    return None, factor
 
 
 def _log_step(rec, row: dict, n_steps: int) -> None:
