@@ -41,3 +41,16 @@ def test_steady_sliding_friction(tmp_path, state_law):
     seis = summary["seismicity"]
     assert seis["events"] == 0 and (tmp_path / "events.csv").read_text().startswith("fault,onset_s")
     assert seis["aseismic_moment"]["fault"] > 0
+    # the seismicity series and figure; nothing injected here
+    rows = (tmp_path / "seismicity.csv").read_text().splitlines()
+    assert rows[0].startswith("time_s,injected_volume,seismic_moment,aseismic_moment,peak_slip_rate_fault")
+    last = [float(v) for v in rows[-1].split(",")]
+    assert last[0] == pytest.approx(1e5) and last[1] == 0.0 and last[2] == 0.0
+    assert last[3] == pytest.approx(seis["aseismic_moment"]["fault"], rel=1e-8)
+    assert last[4] == pytest.approx(VL, rel=1e-8)
+    assert (tmp_path / "seismicity.png").stat().st_size > 0
+    # ΔCFS since the start with μ = f₀: the fault loaded in shear at constant σ′
+    first = {k: v[0] for k, v in meshio.read(sorted(glob.glob(str(tmp_path / "fractures_*.vtu")))[0]).cell_data.items()}
+    expected = (lt - first["lambda_t"]) - F0 * (ln - first["lambda_n"])
+    assert np.allclose(f["delta_cfs"], expected, rtol=1e-9, atol=1e-3)
+    assert np.all(f["delta_cfs"] > 0) and np.allclose(f["slip_tendency"], lt / ln, rtol=1e-12)

@@ -53,7 +53,15 @@ FRACTURES = {
     "first_slip": "time the face first slipped (s); NaN: not yet",
     "slip_path": "slip-weakening: the slip path δ, the length of the tangential jump's increments summed over the "
                  "steps (m)",
-    "friction_coefficient": "slip-weakening: the friction coefficient F(δ) at the face's slip path (–)",
+    "friction_coefficient": "slip-weakening: the friction coefficient F(δ) at the face's slip path; rate-and-state: "
+                            "μ(V, θ) at the face's slip rate and state (–)",
+    "state_theta": "rate-and-state: the state variable θ of the face (s; D_c/V at steady sliding)",
+    "slip_rate": "rate-and-state: the face's slip rate V over the last time step (m/s)",
+    "delta_cfs": "Coulomb failure stress change since the start ΔCFS = Δτ − μ Δσ_n′ (Pa; τ = |λ_τ|, σ_n′ = λ_n, μ "
+                 "the law's static coefficient: friction, f0 for rate-and-state, 0 for Tresca); > 0: towards failure",
+    "slip_tendency": "slip tendency τ/σ_n′ = |λ_τ|/λ_n (–); NaN where the face is open",
+    "delta_tau": "Δτ, the change of |λ_τ| since the start (Pa)",
+    "delta_sigma_n": "Δσ_n′, the change of λ_n since the start (Pa; > 0: more compression)",
     "trace_plus": "matrix pressure on the face's + side (Pa)",
     "trace_minus": "matrix pressure on the face's − side (Pa)",
     "exchange": "matrix → fracture flux through both sides per unit face area (m/s)",
@@ -68,13 +76,15 @@ CSV = {
     "lambda_t": FRACTURES["lambda_t"], "state": "contact state: open, stick or slip (empty in flow runs)",
     "aperture": FRACTURES["aperture"] + " (empty in mechanics runs)",
     "p_f": FRACTURES["p_f"] + " (empty in mechanics runs)",
+    "delta_cfs": FRACTURES["delta_cfs"] + " (empty in mechanics and flow runs)",
+    "slip_tendency": FRACTURES["slip_tendency"] + " (empty in mechanics and flow runs)",
 }
 assert set(CSV) == set(CSV_COLUMNS)
 # the arrays each run driver writes besides region / fracture / normal (tests/unit/io/test_legend.py
 # compares them with the files)
 POROMECHANICS_ARRAYS = (("pressure", "overpressure", "displacement", "effective_stress", "total_stress"),
                         ("jump", "jump_n", "jump_t", "lambda", "lambda_n", "lambda_t", "state", "aperture", "p_f",
-                         "first_slip"))
+                         "first_slip", "delta_cfs", "slip_tendency", "delta_tau", "delta_sigma_n"))
 
 # error measures (summary.json "errors", convergence.csv/json): names are built from parts
 _QUANTITY = {"grad_u": "the displacement gradient ∇u", "lambda": "the contact traction λ",

@@ -481,6 +481,8 @@ class PlotData:
     cell_centroid: np.ndarray
     overpressure: np.ndarray
     notes: list = field(default_factory=list)
+    delta_cfs: np.ndarray | None = None         # (n_ff,) ΔCFS since the start at t_final, Pa (older runs: None)
+    slip_tendency: np.ndarray | None = None     # (n_ff,) τ/σ_n′ at t_final (NaN: open)
 
     def frames(self) -> dict:
         """Fault name -> FaultFrame of its faces (faults with faces only)."""
@@ -545,7 +547,8 @@ def collect(case_name, t_end, fm, face_area, recorder: StepRecorder, monitor: di
         max_overpressure=np.asarray(recorder.max_overpressure),
         well_cells_xyz={k: np.asarray(g.cell_centroid[c]) for k, c in recorder.wells.items()},
         point_xyz={k: np.asarray(g.cell_centroid[c]) for k, c in points.items()},
-        lo=lo, hi=hi, cell_centroid=np.asarray(g.cell_centroid), overpressure=np.asarray(overpressure, float))
+        lo=lo, hi=hi, cell_centroid=np.asarray(g.cell_centroid), overpressure=np.asarray(overpressure, float),
+        delta_cfs=last.get("delta_cfs"), slip_tendency=last.get("slip_tendency"))
 
 
 # --------------------------------------------------------------------------- a finished run's folder
@@ -632,6 +635,10 @@ def from_run_directory(folder, wells_of=None) -> PlotData:
         onset = np.asarray(read_vtu(folder / frac_vtu[-1], ["first_slip"])["first_slip"], float)
     except KeyError:
         onset = None
+    try:                                                    # runs since ΔCFS was written
+        cfs = read_vtu(folder / frac_vtu[-1], ["delta_cfs", "slip_tendency"])
+    except KeyError:
+        cfs = {}
     if fv["offsets"].size != fr["area"].size:
         raise ValueError(f"{folder}: {frac_vtu[-1]} has {fv['offsets'].size} faces, fractures.csv "
                          f"{fr['area'].size}")
@@ -692,7 +699,8 @@ def from_run_directory(folder, wells_of=None) -> PlotData:
         max_overpressure=np.asarray(max_op, float),
         well_cells_xyz={k: centroid[c] for k, c in wells.items()},
         point_xyz={k: np.asarray(v, float) for k, v in mon.get("points", {}).items()},
-        lo=lo, hi=hi, cell_centroid=centroid, overpressure=np.asarray(bv["overpressure"], float), notes=notes)
+        lo=lo, hi=hi, cell_centroid=centroid, overpressure=np.asarray(bv["overpressure"], float), notes=notes,
+        delta_cfs=cfs.get("delta_cfs"), slip_tendency=cfs.get("slip_tendency"))
     reported = mon.get("final_fault_states")
     if reported:
         mine = d.final_states()

@@ -156,7 +156,8 @@ def fracture_profiles(path, names, fracture, s, fields: dict, states, title: str
 
 
 def _row_scales(fields: dict, reference: dict | None) -> dict:
-    """Magnitude (max |value|) of each field; fields in the same unit share the largest."""
+    """Magnitude (max |value|) of each field; fields in the same unit share the largest, except
+    changes (labels starting with Δ): a ΔCFS of 50 kPa next to λ_n of 20 MPa would show flat."""
     mag = {}
     for label, vals in fields.items():
         v = [np.abs(np.asarray(vals, float))]
@@ -165,7 +166,7 @@ def _row_scales(fields: dict, reference: dict | None) -> dict:
         v = np.concatenate(v)
         v = v[np.isfinite(v)]
         mag[label] = float(v.max()) if v.size else 0.0
-    unit = {label: _split_label(label)[1] or label for label in fields}
+    unit = {label: label if label.startswith("Δ") else (_split_label(label)[1] or label) for label in fields}
     return {label: max(mag[k] for k in fields if unit[k] == unit[label]) for label in fields}
 
 
@@ -291,7 +292,8 @@ def poro_plots(stage, case_name, mesh, net, s, snapshots, series, t_end):
     picks = sorted({int(np.argmin(np.abs(times - t_end / 4))), len(snapshots) - 1})
     for j in picks:
         sn = snapshots[j]
-        fields = {"λ_n (Pa)": sn["lambda_n"], "|[[u]]_τ| (m)": sn["jump_t"], "aperture (m)": sn["aperture"]}
+        fields = {"λ_n (Pa)": sn["lambda_n"], "|[[u]]_τ| (m)": sn["jump_t"], "aperture (m)": sn["aperture"],
+                  "ΔCFS since t = 0 (Pa)": sn["delta_cfs"], "slip tendency τ/σ_n′": sn["slip_tendency"]}
         fracture_profiles(stage / f"contact_t{time_tag(sn['time'], t_end)}.png", net.names, net.fracture, s, fields,
                           [("open", "stick", "slip")[v] for v in sn["state"]],
                           title=f"{case_name}: contact along the fractures at t = {format_time(sn['time'], t_end)}")

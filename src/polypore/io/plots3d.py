@@ -9,6 +9,8 @@ loop, and a figure that fails is skipped with a warning, never failing the run):
 - ``fault_maps.png``: each fault's faces in its own plane (along strike against elevation, or up
   dip for gently dipping faults), coloured by the contact state and the slip since the start at
   the final time, and by the time each face first slipped (grey: never);
+- ``fault_stress.png``: each fault in its plane at the final time, coloured by the Coulomb failure
+  stress change ΔCFS since the start and by the slip tendency τ/σ_n′ (runs since issue 28);
 - ``pressure.png``: overpressure p − p⁰ against time at the wells' cells (mean and largest),
   at the monitor points, on each fault and the largest in the domain, with the peak marked;
 - ``pressure_map.png``: the overpressure at the final time in map view (largest over depth)
@@ -32,7 +34,7 @@ from .plots import STATE_COLOURS, _plt, format_time, save, time_unit, value_unit
 
 log = logging.getLogger("polypore")
 
-FIGURES = ("slip_onset.png", "fault_maps.png", "pressure.png", "pressure_map.png")
+FIGURES = ("slip_onset.png", "fault_maps.png", "fault_stress.png", "pressure.png", "pressure_map.png")
 STATE_ORDER = ("open", "stick", "slip")
 # slip below this (m) is round-off on any fault of these runs: not given a colour scale of its own
 SLIP_FLOOR = 1e-9
@@ -51,6 +53,8 @@ def write_3d_plots(folder, d: PlotData, drawn: dict | None = None) -> list[Path]
     todo = [("pressure.png", pressure_plot), ("pressure_map.png", pressure_map_plot)]
     if d.fracture.size:
         todo = [("slip_onset.png", slip_onset_plot), ("fault_maps.png", fault_maps_plot)] + todo
+        if d.delta_cfs is not None:
+            todo.insert(2, ("fault_stress.png", fault_stress_plot))
     done = []
     for name, fn in todo:
         try:
@@ -231,6 +235,61 @@ def fault_maps_plot(path, d: PlotData) -> dict:
     fig.legend(handles=handles, loc="outside lower center", ncol=len(handles), fontsize=9, frameon=False)
     fig.suptitle(f"{d.case}: the faults seen face-on at t = {when} (contact state, slip, and when each face "
                  "first slipped)", fontsize=11)
+    save(fig, path)
+    return out
+
+
+def fault_stress_plot(path, d: PlotData) -> dict:
+    """Each fault in its plane at the final time: ΔCFS since the start (diverging colours, white
+    at 0, one symmetric scale per fault) and the slip tendency τ/σ_n′ (grey where open).
+
+    Returns fault -> ``delta_cfs_min`` / ``delta_cfs_max`` (Pa) and ``slip_tendency_max`` drawn.
+    """
+    plt = _plt()
+    from matplotlib.collections import PolyCollection
+
+    panels = fault_panels(d)
+    if not panels or d.delta_cfs is None:
+        return {}
+    cfs = np.asarray(d.delta_cfs, float)
+    ts = np.asarray(d.slip_tendency, float) if d.slip_tendency is not None else np.full(cfs.size, np.nan)
+    fc, uc = value_unit("Pa", float(np.nanmax(np.abs(cfs))) if cfs.size else 0.0)
+    aspect = [float(np.clip((p["hi"][1] - p["lo"][1]) * p["k"] / max(p["hi"][0] - p["lo"][0], 1e-300), 0.2, 1.1))
+              for p in panels]
+    w = 5.0 if len(panels) <= 2 else 4.0
+    fig, axes = plt.subplots(len(panels), 2, squeeze=False, layout="constrained",
+                             figsize=(2 * w + 2.5, sum(w * a + 1.1 for a in aspect) + 0.9),
+                             gridspec_kw={"height_ratios": [w * a + 1.1 for a in aspect]})
+    ts_top = float(np.nanmax(ts)) if np.isfinite(ts).any() else 1.0
+    out = {}
+    for r, p in enumerate(panels):
+        f = p["faces"]
+        a_c, a_t = axes[r]
+        c = cfs[f] / fc
+        lim = max(float(np.max(np.abs(c))) if f.size else 0.0, 1e-12)
+        pc = PolyCollection(p["polys"], array=c, cmap="RdBu_r", edgecolors="0.5", linewidths=0.1)
+        pc.set_clim(-lim, lim)
+        a_c.add_collection(pc)
+        fig.colorbar(pc, ax=a_c, label=f"ΔCFS ({uc})", shrink=0.9)
+        pt = PolyCollection(p["polys"], array=np.ma.masked_invalid(ts[f]),
+                            cmap=plt.get_cmap("viridis").with_extremes(bad=NEVER), edgecolors="0.5", linewidths=0.1)
+        pt.set_clim(0.0, ts_top)
+        a_t.add_collection(pt)
+        fig.colorbar(pt, ax=a_t, label="slip tendency τ/σ_n′ (–)", shrink=0.9)
+        a_c.set_title(f"{p['name']}: ΔCFS = Δτ − μ Δσ_n′ since t = 0, {c.min():.3g} to {c.max():.3g} {uc}",
+                      fontsize=9)
+        a_t.set_title(f"{p['name']}: slip tendency, largest {np.nanmax(ts[f]) if np.isfinite(ts[f]).any() else 0:.3g}",
+                      fontsize=9)
+        for a in (a_c, a_t):
+            _frame_axes(a, p)
+        out[p["name"]] = {"delta_cfs_min": float(cfs[f].min()), "delta_cfs_max": float(cfs[f].max()),
+                          "slip_tendency_max": float(np.nanmax(ts[f])) if np.isfinite(ts[f]).any() else None}
+    from matplotlib.patches import Patch
+
+    fig.legend(handles=[Patch(facecolor=NEVER, label="open (no slip tendency)")], loc="outside lower center",
+               fontsize=9, frameon=False)
+    fig.suptitle(f"{d.case}: Coulomb failure stress change (> 0: towards failure) and slip tendency at "
+                 f"t = {format_time(d.t_final, d.t_end)}", fontsize=11)
     save(fig, path)
     return out
 

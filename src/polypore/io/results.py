@@ -19,7 +19,7 @@ import numpy as np
 from .atomic import atomic_write_text, is_staging, run_directory
 
 CSV_COLUMNS = ("step", "time", "fracture", "face", "x", "y", "z", "s", "area", "jump_n", "jump_t", "jump_x", "jump_y",
-               "jump_z", "lambda_n", "lambda_t", "state", "aperture", "p_f")
+               "jump_z", "lambda_n", "lambda_t", "state", "aperture", "p_f", "delta_cfs", "slip_tendency")
 
 
 def _jsonable(obj):
@@ -42,8 +42,9 @@ def write_json(path, data: dict) -> None:
 
 
 def fracture_rows(step: int, time: float, names, fracture, centroid, s, area, jump, normal, lam, state_names,
-                  aperture=None, p_f=None) -> list[dict]:
-    """Rows of fractures.csv for one output time (arrays over fracture faces)."""
+                  aperture=None, p_f=None, delta_cfs=None, slip_tendency=None) -> list[dict]:
+    """Rows of fractures.csv for one output time (arrays over fracture faces); the optional columns
+    (poromechanics: aperture, p_f, ΔCFS, slip tendency) are empty when not given."""
     n = len(fracture)
     d = jump.shape[1]
     jn = np.einsum("fi,fi->f", jump, normal)
@@ -58,6 +59,8 @@ def fracture_rows(step: int, time: float, names, fracture, centroid, s, area, ju
         "jump_z": jump[:, 2] if d == 3 else np.full(n, ""), "lambda_n": ln, "lambda_t": lt,
         "state": np.asarray(state_names), "aperture": aperture if aperture is not None else np.full(n, ""),
         "p_f": p_f if p_f is not None else np.full(n, ""),
+        "delta_cfs": delta_cfs if delta_cfs is not None else np.full(n, ""),
+        "slip_tendency": slip_tendency if slip_tendency is not None else np.full(n, ""),
     }
     return cols
 

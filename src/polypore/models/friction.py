@@ -292,3 +292,15 @@ def friction_law(name: str, n: int, friction=None, threshold=None, dynamic_frict
                             state_law, stick_rate, start_from)
     return SlipWeakening(need("friction", friction), need("dynamic_friction", dynamic_friction),
                          need("critical_slip", critical_slip))
+
+
+def failure_coefficient(law: FrictionLaw, n: int) -> np.ndarray:
+    """(n,) the friction coefficient μ of the Coulomb failure stress CFS = |λ_τ| − μ λ_n per patch
+    (:mod:`polypore.models.fault_stress`).
+
+    **Choice**: the law's static coefficient, the one a failure assessment compares with: Coulomb's
+    F, slip-weakening's F_s, rate-and-state's f₀ (its steady-state coefficient at V₀); 0 for the
+    frictionless and the Tresca laws, whose threshold does not depend on the normal traction.
+    """
+    mu = getattr(law, "f0", getattr(law, "friction", None))
+    return np.zeros(n) if mu is None else np.array(np.broadcast_to(mu, (n,)), float)

@@ -570,6 +570,16 @@ class Poromechanics:
         p_dir[ids] = vals
         return A_dt, r_dt, p_dir
 
+    def injection_rate(self, t: float) -> float:
+        """The fluid volume injected per second at t, m³/s (m²/s per metre in 2D): the cell and
+        fracture sources (wells included) plus the inflow through rate and flux boundaries, as
+        the step ending at t takes them (:meth:`flow_step_system`); < 0 where production wins.
+        Pressure boundaries are not injection and are left out."""
+        _, _, qflux = self.flow.dirichlet(t)
+        hm, hf = self.flow.sources(t)
+        ok = self.dofs.face >= 0
+        return float(hm.sum() + hf.sum() - qflux[ok].sum())
+
     def load_vector(self, t: float) -> np.ndarray:
         """(n_dofs,) ℓ(t) + Σ_σ |σ| λ⁰·[[v]]_σ: the loads of the increment problem, N (N/m in 2D).
 

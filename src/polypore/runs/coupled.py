@@ -32,6 +32,7 @@ from ..io.monitor3d import collect, from_run_directory, tangential
 from ..io.plots import monitor_plots, poro_plots, time_unit
 from ..io.plots3d import write_3d_plots
 from ..io.results import staged_run_directory, write_json
+from ..io.seismicity_plots import seismicity_plot
 from ..models.contact import OPEN, SLIP, STICK
 from ..models.fracture_geometry import arc_length
 from ..models.friction import RateLaw
@@ -113,6 +114,7 @@ def run_poromechanics(case: CaseFile, out: Path) -> dict:
         if catalogue is not None:
             catalogue.finish(state.time)
             catalogue.write(stage / "events.csv")
+            catalogue.write_series(stage / "seismicity.csv")
         summary = write_results(run, recorder, series, state, clock, catalogue)
     return summary
 
@@ -189,7 +191,7 @@ class CoupledMarch:
             m = self.model
             rate = m.mech.face_values(new.friction[:, 1])
             slip = tangential(m.jumps(new.u) - m.jumps(st.u), m.mech.normal)
-            out["seismic"] = (ta, tb, rate, slip)
+            out["seismic"] = (ta, tb, rate, slip, m.injection_rate(tb) * (tb - ta))
         return new, out
 
     def accept(self, sub):
@@ -277,7 +279,7 @@ def write_results(run: CoupledRun, recorder: PoroRecorder, series: OutputSeries,
     recorder.check_energy()
     series.write()
     t_plots = time.perf_counter()
-    _plots(run, recorder, series.folder, state)
+    _plots(run, recorder, series.folder, state, catalogue)
     t_plots = time.perf_counter() - t_plots
     summary = {
         "case": run.case.name, "version": __version__, "model": "poromechanics",
@@ -300,10 +302,17 @@ def write_results(run: CoupledRun, recorder: PoroRecorder, series: OutputSeries,
     return summary
 
 
-def _plots(run: CoupledRun, recorder: PoroRecorder, stage: Path, state) -> None:
+def _plots(run: CoupledRun, recorder: PoroRecorder, stage: Path, state, catalogue: EventCatalogue | None = None
+           ) -> None:
     """The monitor plots of a finished run: 2D overpressure, contact and monitor plots, or the 3D
-    monitor plots (:mod:`polypore.io.plots3d`); a plot that fails is a warning."""
+    monitor plots (:mod:`polypore.io.plots3d`), and seismicity.png with a rate law; a plot that
+    fails is a warning."""
     case, fm, model, end = run.case, run.fm, run.model, run.schedule.end
+    if catalogue is not None:
+        mu_s = float(catalogue.shear_modulus.max()) if catalogue.shear_modulus.size else 0.0
+        _plot_safely("seismicity", lambda: seismicity_plot(stage / "seismicity.png", case.name, catalogue.series(),
+                                                           catalogue.events, fm.mesh.dim, catalogue.threshold,
+                                                           mu_s, end))
     mesh, net, s_arc = fm.mesh, fm.network, recorder.s_arc
     if mesh.dim == 2:
         tf, tname = time_unit(end)
@@ -314,7 +323,7 @@ def _plots(run: CoupledRun, recorder: PoroRecorder, stage: Path, state) -> None:
                                                       f"t ({tname})"))
     else:
         # the face states and onsets are the recorder's (those of summary.json's series)
-        last = {"time": state.time, "slip": recorder.slip_since_start(state)}
+        last = {"time": state.time, "slip": recorder.slip_since_start(state), **recorder.fault_stress(state)}
         op = model.cell_pressure(state) - recorder.p0
         _plot_safely("3D monitor", lambda: write_3d_plots(stage, collect(
             case.name, end, fm, model.mech.face_area, recorder.fault_monitor, recorder.monitor, last, run.points,

@@ -18,6 +18,8 @@ from ..io.results import fracture_rows, write_fractures_csv
 from ..io.vtu import symmetric_tensor, write_bulk_vtu, write_fracture_vtu, write_pvd
 from ..models.contact import SLIP, STATE_NAMES
 from ..models.energy import check_energy
+from ..models.fault_stress import coulomb_fields
+from ..models.friction import failure_coefficient
 
 log = logging.getLogger("polypore")
 # a step whose fracture conductivity grows more than this (aperture ×10 with the cubic law), on
@@ -86,6 +88,11 @@ class PoroRecorder:
         self.fault_monitor = StepRecorder(net.names, net.fracture, model.mech.face_area, wells,
                                           fm.mesh.geometry.cell_volume)
         self.q_start = model.jumps(start.u)
+        # the reference of ΔCFS and the law's failure coefficient per face (the maps of each output)
+        self.lam_start = np.array(start.lam, float)
+        mech = model.mech
+        self.failure_mu = mech.face_values(failure_coefficient(mech.law.friction_law, mech.n_c)) if model.n_ff \
+            else np.zeros(0)
         self.monitor = {"time": [], "points": {k: [] for k in points}, "fault_p": {k: [] for k in net.names},
                         "fault_slip": {k: [] for k in net.names}}
         self.onset: dict = {}
@@ -99,6 +106,11 @@ class PoroRecorder:
     def slip_since_start(self, st) -> np.ndarray:
         """(n_ff,) tangential jump since the initial state (m)."""
         return tangential(self.model.jumps(st.u) - self.q_start, self.model.mech.normal)
+
+    def fault_stress(self, st) -> dict:
+        """ΔCFS since the start, slip tendency, Δτ and Δσ_n′ per fracture face (n_ff,) of the state
+        ``st`` (:func:`polypore.models.fault_stress.coulomb_fields`)."""
+        return coulomb_fields(st.lam, self.lam_start, self.model.mech.normal, self.failure_mu)
 
     def record(self, st) -> None:
         """Record the state ``st``: fracture means, monitor series, face states and the slip onset."""
@@ -169,6 +181,7 @@ class PoroRecorder:
         model, mesh, net = self.model, self.fm.mesh, self.fm.network
         g = mesh.geometry
         fq = model.fracture_quantities(st)
+        cfs = self.fault_stress(st)
         p = model.cell_pressure(st)
         eff, tot = model.stresses(st)
         (eff, comps), (tot, _) = symmetric_tensor(eff), symmetric_tensor(tot)
@@ -181,15 +194,17 @@ class PoroRecorder:
         write_fracture_vtu(fractures, self.fm, cell_data={
             "jump": fq["jump"], "jump_n": fq["jump_n"], "jump_t": fq["jump_t"], "lambda": st.lam,
             "lambda_n": fq["lambda_n"], "lambda_t": fq["lambda_t"], "state": fq["state"].astype(np.int32),
-            "aperture": fq["aperture"], "p_f": fq["p_f"], **model.friction_fields(st),
+            "aperture": fq["aperture"], "p_f": fq["p_f"], **model.friction_fields(st), **cfs,
             # every step's onset (the recorder saw this time already): replots draw the same
             "first_slip": self.fault_monitor.onset.copy()})
         series.add(st.time, fracture_rows(n, st.time, net.names, net.fracture, g.face_centroid[net.faces],
                                           self.s_arc, model.mech.face_area, fq["jump"], model.mech.normal, st.lam,
-                                          [STATE_NAMES[k] for k in fq["state"]], fq["aperture"], fq["p_f"]))
+                                          [STATE_NAMES[k] for k in fq["state"]], fq["aperture"], fq["p_f"],
+                                          cfs["delta_cfs"], cfs["slip_tendency"]))
         self.snapshots.append({"time": st.time, "overpressure": p - self.p0, "state": fq["state"].copy(),
                                "lambda_n": fq["lambda_n"].copy(), "jump_t": fq["jump_t"].copy(),
-                               "aperture": fq["aperture"].copy(), "slip": self.slip_since_start(st)})
+                               "aperture": fq["aperture"].copy(), "slip": self.slip_since_start(st),
+                               "delta_cfs": cfs["delta_cfs"], "slip_tendency": cfs["slip_tendency"]})
 
     def check_energy(self) -> list:
         """Check the energy estimate on every recorded sub-step; log and return the violations."""

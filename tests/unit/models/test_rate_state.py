@@ -201,3 +201,24 @@ def test_radius_fades_continuously_on_opening():
     rad = L.trial_radius(yn, np.full(5, 1e5), st, 1e-3, np.full(5, 1e10))
     assert rad.value[3] == 0.0 and rad.value[4] == 0.0
     assert rad.value[0] < 1e-2 * 1e5 * 1e-3 and rad.value[0] < rad.value[1] < rad.value[2]
+
+
+@pytest.mark.parametrize("state_law", ["aging", "slip"])
+def test_step_error_is_the_rate_change_the_state_update_depends_on(state_law):
+    """A step at constant V has no error however much θ changes (the update is exact: a locked
+    fault heals in one step); otherwise the measure is |Δ ln(V + V_f)| max(1, |∂ln θ/∂ln V|)."""
+    L = law(3, state_law)
+    theta0 = np.array([13.0, DC / 1e-6, 1e4])
+    V = np.array([1e-12, 1e-6, 1e-3])
+    dt = 4.32e5
+    old = np.column_stack([theta0, V])
+    healed = np.column_stack([np.exp(L.log_state(np.log(V), theta0, dt)[0]), V])
+    assert np.max(np.abs(np.log(healed[:, 0] / theta0))) > 5         # θ changed by e^5 and more
+    # (the two sliding patches are flagged as stepped too long for the state, ΔtV/D_c ≫ a/b: apart)
+    assert L.step_error(old, healed, dt)[0] == 0.0
+    V2 = V * np.array([1.0, 2.0, 1.0])
+    new = np.column_stack([np.exp(L.log_state(np.log(V2), theta0, dt)[0]), V2])
+    vf = 0.1 * L.stick_rate
+    dlt = L.log_state(np.log(V2), theta0, dt)[1][1]
+    err, _ = L.step_error(old, new, dt)
+    assert err == pytest.approx(np.log((2e-6 + vf) / (1e-6 + vf)) * max(1.0, abs(dlt)), rel=1e-12)

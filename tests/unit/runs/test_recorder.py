@@ -10,6 +10,7 @@ import numpy as np
 import pytest
 
 from polypore.io.results import fracture_rows
+from polypore.models.friction import Coulomb
 from polypore.runs.march import StepRecord
 from polypore.runs.recorder import CONDUCTIVITY_GROWTH_WARN, OutputSeries, PoroRecorder
 
@@ -45,7 +46,9 @@ class FakeModel:
     """The parts of a Poromechanics model the recorder reads: the jump is the state's u per face,
     the cell pressure its p, the aperture and p_f fixed multiples of them."""
 
-    mech = SimpleNamespace(face_area=AREA, normal=NORMAL)
+    mech = SimpleNamespace(face_area=AREA, normal=NORMAL, n_c=3, face_values=lambda v: v,
+                           law=SimpleNamespace(friction_law=Coulomb(np.array([0.6, 0.6, 0.8]))))
+    n_ff = 3
 
     def jumps(self, u):
         return u
@@ -57,8 +60,9 @@ class FakeModel:
         return {"aperture": 1e-4 * (1 + st.time) * np.ones(3), "p_f": np.array([1.0, 2.0, 3.0]) * st.time}
 
 
-def _state(t, p, u, state):
-    return SimpleNamespace(time=t, p=np.asarray(p, float), u=np.asarray(u, float), state=np.asarray(state))
+def _state(t, p, u, state, lam=None):
+    return SimpleNamespace(time=t, p=np.asarray(p, float), u=np.asarray(u, float), state=np.asarray(state),
+                           lam=np.zeros((3, 2)) if lam is None else np.asarray(lam, float))
 
 
 def _info(iterations, growth, linear=None):
@@ -113,3 +117,25 @@ def test_poro_recorder_records_two_steps(recorder, caplog):
     assert mon["slip_area_fraction"] == {"F1": [0.0, 0.0], "F2": [0.0, 1.0]}
     assert mon["wells"] == {"W": {"cells": 2, "mean_overpressure": [0.0, 2.5], "max_overpressure": [0.0, 4.0]}}
     assert rec.totals() == {"newton_iterations": 5, "newton_iterations_failed": 7, "linear_iterations_failed": 0}
+
+
+def test_fault_stress_is_measured_from_the_start(recorder):
+    """ΔCFS = Δ|λ_τ| − μ Δλ_n per face against the recorder's initial state, μ the law's
+    coefficient per face; the slip tendency |λ_τ|/λ_n, NaN on an open face."""
+    rec, _ = recorder
+    start = _state(0.0, [0, 0, 0], np.zeros((3, 2)), [1, 1, 1], lam=[[1.0, 10.0], [-2.0, 10.0], [0.0, 5.0]])
+    rec2 = PoroRecorder(FakeModel(), rec.fm, np.arange(3.0), {}, {}, np.zeros(3), np.zeros(3), start)
+    # faces 0, 1: normal (0, 1) (NORMAL), face 2 open at the end
+    now = _state(1.0, [0, 0, 0], np.zeros((3, 2)), [1, 2, 0], lam=[[3.0, 9.0], [-1.0, 12.0], [0.0, 0.0]])
+    f = rec2.fault_stress(now)
+    n = NORMAL
+    for i, mu in enumerate([0.6, 0.6, 0.8]):
+        sn0, sn = start.lam[i] @ n[i], now.lam[i] @ n[i]
+        t0 = np.linalg.norm(start.lam[i] - sn0 * n[i])
+        t1 = np.linalg.norm(now.lam[i] - sn * n[i])
+        assert f["delta_cfs"][i] == pytest.approx((t1 - t0) - mu * (sn - sn0), abs=1e-12)
+        assert f["delta_tau"][i] == pytest.approx(t1 - t0) and f["delta_sigma_n"][i] == pytest.approx(sn - sn0)
+    assert f["slip_tendency"][0] == pytest.approx(np.linalg.norm(now.lam[0] - (now.lam[0] @ n[0]) * n[0])
+                                                  / (now.lam[0] @ n[0]))
+    assert f["delta_cfs"][0] == pytest.approx(2.6)          # τ 1 → 3, σ_n′ 10 → 9: 2 + 0.6
+    assert np.isnan(f["slip_tendency"][2])

@@ -53,3 +53,44 @@ def test_an_event_running_at_the_end_is_closed_and_2d_has_no_magnitude():
 
 def test_moment_magnitude():
     assert moment_magnitude(10 ** (1.5 * 6 + 9.1)) == pytest.approx(6.0)
+
+
+def test_the_series_counts_injected_volume_and_both_moments(tmp_path):
+    """Each sub-step adds a row: cumulative ΔV, seismic moment (events, running ones included) and
+    aseismic moment, and each fault's peak rate; events carry ΔV at their end."""
+    c = _catalogue()
+    c.add(0.0, 1.0, np.array([1e-9, 0, 0, 1e-6, 0]), np.array([1e-9, 0, 0, 1e-6, 0]), injected=2.0)
+    c.add(1.0, 2.0, np.array([2e-3, 0, 0, 0, 0]), np.array([1e-3, 0, 0, 0, 0]), injected=3.0)
+    c.add(2.0, 3.0, np.zeros(5), np.zeros(5), injected=1.0)
+    s = c.series()
+    assert np.array_equal(s["time"], [1.0, 2.0, 3.0]) and np.array_equal(s["injected_volume"], [2.0, 5.0, 6.0])
+    assert np.allclose(s["seismic_moment"], [0.0, 3e10 * 1e-3, 3e10 * 1e-3])
+    assert np.allclose(s["aseismic_moment"], 3e10 * (1e-9 + 4e-6))
+    assert np.array_equal(s["peak_slip_rate"]["A"], [1e-9, 2e-3, 0.0])
+    assert np.array_equal(s["peak_slip_rate"]["B"], [1e-6, 0.0, 0.0])
+    (e,) = c.events
+    assert e["injected_volume"] == 6.0 and e["moment"] == pytest.approx(s["seismic_moment"][-1])
+    assert c.summary()["injected_volume"] == 6.0
+    c.write_series(tmp_path / "seismicity.csv")
+    rows = list(csv.DictReader(open(tmp_path / "seismicity.csv")))
+    assert [float(r["injected_volume"]) for r in rows] == [2.0, 5.0, 6.0]
+    assert float(rows[1]["peak_slip_rate_A"]) == 2e-3
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_seismicity_plot_draws_the_catalogue_and_mcgarr(tmp_path, dim):
+    from polypore.io.seismicity_plots import seismicity_plot
+
+    c = _catalogue(dim)
+    c.add(0.0, 1.0, np.array([1e-9, 0, 0, 1e-6, 0]), np.array([1e-9, 0, 0, 1e-6, 0]), injected=2.0)
+    c.add(1.0, 2.0, np.array([2e-3, 0, 0, 0, 0]), np.array([1e-3, 0, 0, 0, 0]), injected=3.0)
+    c.add(2.0, 3.0, np.zeros(5), np.zeros(5), injected=1.0)
+    out = seismicity_plot(tmp_path / "s.png", "t", c.series(), c.events, dim, 1e-3, 3e10, 3.0)
+    assert (tmp_path / "s.png").stat().st_size > 0
+    assert out == {"events": 1, "largest_moment": pytest.approx(3e7), "injected_volume": 6.0,
+                   "mcgarr_bound": pytest.approx(1.8e11)}
+    # no injection, no event: the panels say so instead of failing
+    c0 = _catalogue(dim)
+    c0.add(0.0, 1.0, np.zeros(5), np.zeros(5))
+    out0 = seismicity_plot(tmp_path / "s0.png", "t", c0.series(), c0.events, dim, 1e-3, 3e10, 1.0)
+    assert out0["mcgarr_bound"] is None and out0["events"] == 0
