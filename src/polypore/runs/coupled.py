@@ -58,7 +58,7 @@ BUBBLE_OVER_NODAL = 3.0
 SLIPPED = 1e-4          # m
 # rate-and-state: the smallest sub-step is at least time.step / 2^RATE_CUTS (a year to 4e-7 s)
 RATE_CUTS = 48
-# a step that changed ln V or ln θ by more than RATE_REJECT × time.rate_tolerance is redone; the
+# a step whose rate-law step error (RateLaw.step_error) is above RATE_REJECT × time.rate_tolerance is redone; the
 # next step grows at most RATE_GROWTH-fold
 RATE_REJECT = 2.0
 RATE_GROWTH = 1.5
@@ -222,8 +222,8 @@ class CoupledMarch:
 
 def rate_step_control(rate_error: tuple, tolerance: float) -> tuple[str | None, float]:
     """A rate law's sub-step: (why it is redone, or None; the next size's factor), from its
-    :meth:`RateLaw.step_error` (the largest change of ln V and ln θ, the patches where it was too
-    long for the state) and time.rate_tolerance. The change per step ∝ Δt: the next size aims at
+    :meth:`RateLaw.step_error` (the largest change of ln V, times the state's sensitivity to it
+    where that is above 1; the patches where it was too long for the state) and time.rate_tolerance. The change per step ∝ Δt: the next size aims at
     0.9 tol, growing at most RATE_GROWTH-fold so that the steps' lag (implicit Euler's mean rate)
     changes smoothly; a step too long for the state is followed by at most half its size."""
     err, soft = rate_error
@@ -231,8 +231,8 @@ def rate_step_control(rate_error: tuple, tolerance: float) -> tuple[str | None, 
     if soft:
         return f"the step was too long for the friction state on {soft} patch(es) (ΔtV/D_c ≳ a/b)", min(factor, 0.5)
     if err > RATE_REJECT * tolerance:
-        return (f"ln V or ln θ changed by {err:.2g} in the step, above {RATE_REJECT:g} × time.rate_tolerance = "
-                f"{tolerance:g}"), factor
+        return (f"the slip rate's logarithm changed by {err:.2g} in the step (with the state's sensitivity), above "
+                f"{RATE_REJECT:g} × time.rate_tolerance ({tolerance:g})"), factor
     return None, factor
 
 

@@ -11,7 +11,7 @@
     max_cuts = 4                  # halvings of a step whose Newton loop fails before giving up
     max_conductivity_growth = 1e3 # poromechanics: halve a (sub-)step in which a C_f grows more
     growth_cuts = 8               # its smallest sub-step: step / 2^growth_cuts
-    rate_tolerance = 0.05         # rate-and-state: change of ln V and ln θ per sub-step
+    rate_tolerance = 0.05         # rate-and-state: change of ln V per sub-step (RateLaw.step_error)
 """
 
 from __future__ import annotations

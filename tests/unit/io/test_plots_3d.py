@@ -351,3 +351,23 @@ def test_fractures_csv_reader_matches_the_file(small_run):
     last = [r for r in rows if int(r["step"]) == fr["step"][-1]]
     assert [m3.STATE_CODES[r["state"]] for r in last] == fr["state"][-1].tolist()
     assert [float(r["jump_y"]) for r in last] == fr["jump"][-1, :, 1].tolist()
+
+
+def test_fault_stress_map_draws_the_runs_final_delta_cfs(small_run):
+    """fault_stress.png colours each fault's faces by the final output's ΔCFS (the VTU array,
+    in the colour bar's unit) and slip tendency (NaN where open)."""
+    out, drawn, _ = small_run
+    last = sorted(out.glob("fractures_*.vtu"))[-1]
+    v = m3.read_vtu(last, ["delta_cfs", "slip_tendency", "fracture"])
+    axes = drawn["fault_stress.png"]
+    cfs_axes = [a for a in axes if "ΔCFS" in a["title"]]
+    ts_axes = [a for a in axes if "slip tendency" in a["title"]]
+    assert cfs_axes and len(cfs_axes) == len(ts_axes)
+    drawn_cfs = np.concatenate([a["polys"][0][0] for a in cfs_axes])
+    drawn_ts = np.concatenate([a["polys"][0][0] for a in ts_axes])
+    faces = np.concatenate([np.flatnonzero(v["fracture"] == i) for i in range(len(cfs_axes))])
+    ref = v["delta_cfs"][faces]
+    scale = min((1.0, 1e-3, 1e-6), key=lambda c: abs(np.log(max(abs(ref).max() * c, 1e-300) /
+                                                                 max(np.abs(drawn_cfs).max(), 1e-300))))
+    np.testing.assert_allclose(drawn_cfs, ref * scale, rtol=1e-9, atol=1e-12)
+    np.testing.assert_allclose(drawn_ts, v["slip_tendency"][faces], rtol=1e-12)

@@ -88,9 +88,10 @@ class Time(Table):
                                                            "smallest sub-step is time.step / 2^growth_cuts "
                                                            "(rate-and-state friction: at least 2^48)")
     rate_tolerance: number(gt=0, le=1) = Field(0.05, description="rate-and-state friction: the sub-steps are sized "
-                                               "so that ln V and ln θ change by about this much per sub-step on every "
-                                               "fault face (from years between events to milliseconds inside one); "
-                                               "implicit Euler's error is proportional to it")
+                                               "so that ln V (times the state's sensitivity to it, where above 1) "
+                                               "changes by about this much per sub-step on every fault face (from "
+                                               "years between events to milliseconds inside one); implicit Euler's "
+                                               "error is proportional to it")
 
     @model_validator(mode="after")
     def _advances(self):
