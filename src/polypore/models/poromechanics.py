@@ -261,9 +261,10 @@ class Poromechanics:
             raise InputError("conductivity_aperture", f"must be one of {', '.join(APERTURES)}, got "
                              f"{conductivity_aperture!r}")
         self.conductivity_aperture = conductivity_aperture
-        if mech_data.matrix_pressure is not None or mech_data.fracture_pressure is not None:
-            raise InputError("matrix_pressure", "the coupled model computes p_m and p_f: leave "
-                             "matrix_pressure and fracture_pressure unset")
+        for key in ("matrix_pressure", "fracture_pressure"):
+            if getattr(mech_data, key) is not None:
+                raise InputError(key, "the coupled model computes p_m and p_f: leave matrix_pressure and "
+                                 "fracture_pressure unset (the flow's sources and boundaries set the pressures)")
         self.fm = fm
         self.newton = newton or NewtonOptions(label="poromechanics Newton")
         # the initial equilibrium's and the flow model's solvers, and the coupled one (built once

@@ -68,7 +68,8 @@ FLOW = {**under("flow", ("biot_modulus", "biot_coefficient", "fracture_compressi
                          "viscosity", "alpha", "fracture_alpha", "normal_permeability", "aperture", "cell_source",
                          "fracture_source", "initial_pressure", "permeability")),
         "cells": "mesh.cells", "network": "fractures", "params": "parameters", "dt": "time.dt"}
-POROMECHANICS = {**MECHANICS, **FLOW, "predictor": "solver.predictor", "matrix_pressure": "mechanics.pressure",
+POROMECHANICS = {**MECHANICS, **FLOW, "predictor": "solver.predictor", "matrix_pressure": "mechanics.matrix_pressure",
+                 "fracture_pressure": "mechanics.fracture_pressure",
                  **under("flow", ("dilatancy", "pressure_stabilisation"))}
 # the solvers' own parameter names (solvers/factory.py, solvers/petsc.py)
 SOLVER = {"backend": "solver.linear", "petsc_options": "solver.petsc"}
