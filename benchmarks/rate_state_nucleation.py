@@ -19,8 +19,8 @@ with c_s = 3000 m/s.
 
 Every accepted sub-step's slip-rate profile is read (:class:`Watched`); printed per
 a/b and face size: the half-length of the zone where V > V_max/2 and V > V_max/10 when V_max
-crosses 1e-8 … 1e-2 m/s, over L∞ and L_ν. The run stops when V_max exceeds 2 cm/s (the rupture then
-spreads along the fault, ~100 sub-steps per face it reaches).
+crosses 1e-8 … 1e-2 m/s, over L∞ and L_ν. The run stops there (the rupture then spreads along the
+fault, ~100 sub-steps per face it reaches; with a/b = 0.75 V_max stays below 2 cm/s meanwhile).
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ MU = E / (2 * (1 + NU))
 MU_P = MU / (1 - NU)                    # μ′ of mode II
 LAMBDA = E * NU / ((1 + NU) * (1 - 2 * NU))
 THRESHOLDS = (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2)
-STOP = 2e-2                             # m/s: radiation damping bounds V near Δτ/η ~ 0.1 m/s here
+STOP = THRESHOLDS[-1]                   # m/s: radiation damping bounds V near Δτ/η (~1e-2–1e-1 m/s here)
 
 CASE = """
 name = "rate-state-nucleation"
@@ -110,7 +110,7 @@ uy = "-eps*y"
 
 
 class Stop(Exception):
-    """V_max passed STOP: the nucleation is over."""
+    """V_max passed STOP, the last threshold: the nucleation is over."""
 
 
 class Profiles:
