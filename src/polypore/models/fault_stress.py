@@ -10,12 +10,14 @@ stress σ_n′, since the fluid pressure acts on the faces apart from λ, scheme
 ΔCFS > 0 moves a face towards failure; T_s reaches μ on a Coulomb face that slips. Δτ is the
 change of the shear traction's length, not of a component along a fixed rake: a fault whose
 shear traction rotates is not brought closer to failure by the rotation alone. T_s is NaN where
-the face is open (σ_n′ = 0: no traction to compare with).
+the face is open (σ_n′ ≤ OPEN_ROUNDOFF × the largest traction: no traction to compare with).
 """
 
 from __future__ import annotations
 
 import numpy as np
+
+OPEN_ROUNDOFF = 1e-9        # σ_n′ at or below this fraction of the largest traction: open
 
 
 def normal_and_shear(lam: np.ndarray, normal: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -35,6 +37,9 @@ def coulomb_fields(lam: np.ndarray, lam_ref: np.ndarray, normal: np.ndarray, mu:
     sn, tau = normal_and_shear(lam, normal)
     sn0, tau0 = normal_and_shear(lam_ref, normal)
     d_tau, d_sn = tau - tau0, sn - sn0
+    # an open face's λ is zero up to the solve's round-off (1e-12 of the tractions): τ/σ_n′ of
+    # round-off is noise, and differed between a serial and a 2-rank run
+    closed = sn > OPEN_ROUNDOFF * (float(np.max(np.abs(lam))) if lam.size else 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
-        tendency = np.where(sn > 0, tau / np.where(sn > 0, sn, 1.0), np.nan)
+        tendency = np.where(closed, tau / np.where(closed, sn, 1.0), np.nan)
     return {"delta_cfs": d_tau - mu * d_sn, "slip_tendency": tendency, "delta_tau": d_tau, "delta_sigma_n": d_sn}
