@@ -29,6 +29,8 @@ import numpy as np
 from scipy import fft as sfft
 from scipy import integrate, linalg, optimize, special
 
+from .spring_slider import state_rate
+
 DAY = 86400.0
 YEAR = 365.0 * DAY                     # t_f = 2 years = 63 072 000 s, as tandem's and QDBIM's BP6 runs
 VARIANTS = ("QD-A", "QD-S", "QD-C")
@@ -362,11 +364,8 @@ class RateStateFault:
         # a rejected trial stage may overflow: its non-finite error estimate makes the pair cut the step
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             _, _, _, V, _ = self.fields(t, y)
-            lnth = y[n:]
-            if self.law == "aging":
-                dl = np.exp(-lnth) - V / prm.Dc
-            else:
-                dl = -(V / prm.Dc) * (np.log(V / prm.Dc) + lnth)
+            theta = np.exp(y[n:])
+            dl = state_rate(V, theta, prm.Dc, self.law) / theta      # d ln θ/dt
         return np.concatenate([V, dl])
 
     def initial_state(self) -> np.ndarray:

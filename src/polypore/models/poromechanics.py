@@ -70,6 +70,7 @@ from ..solvers.factory import BlockProblem, SolverSource, build, coupled_solvers
 from ..solvers.linear import release_solver
 from ..solvers.newton import PREDICTORS, Linearisation, NewtonOptions, row_weights, semismooth_newton
 from .contact import OPEN, SLIP, linearise_contact
+from .fault_stress import normal_and_shear
 from .energy import step_energy
 from .friction import RateLaw
 from .flow import FlowData, FlowModel, FlowSolution, _positive
@@ -1000,10 +1001,9 @@ class Poromechanics:
         lambda_t = |λ_τ|, state, aperture (m), p_f (Pa)."""
         n = self.mech.normal
         q = self.jumps(st.u)
-        qn = np.einsum("fi,fi->f", q, n)
-        ln = np.einsum("fi,fi->f", st.lam, n)
-        return {"jump": q, "jump_n": qn, "jump_t": np.linalg.norm(q - qn[:, None] * n, axis=1),
-                "lambda_n": ln, "lambda_t": np.linalg.norm(st.lam - ln[:, None] * n, axis=1),
+        qn, qt = normal_and_shear(q, n)
+        ln, lt = normal_and_shear(st.lam, n)
+        return {"jump": q, "jump_n": qn, "jump_t": qt, "lambda_n": ln, "lambda_t": lt,
                 "state": st.state, "aperture": st.aperture, "p_f": st.p[self.dofs.frac]}
 
     def cell_pressure(self, st: PoroState) -> np.ndarray:
